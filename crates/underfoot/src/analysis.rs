@@ -1,0 +1,1 @@
+//! TODO(lead): the measured response of a material.

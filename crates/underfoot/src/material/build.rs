@@ -1,0 +1,1 @@
+//! TODO(lead): fitting a material model from recordings.

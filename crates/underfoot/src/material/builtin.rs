@@ -1,0 +1,1 @@
+//! TODO(helper): built-in library

@@ -1,0 +1,12 @@
+//! Material models and the library file that holds them.
+//!
+//! A [`MaterialModel`] is one row of the paper's soil-type look-up table (Fig. 3): the
+//! fitted filter of one ground material, with the evidence of how well it fits. A
+//! [`Library`] is the versioned JSON file of many of them.
+pub mod build;
+pub mod builtin;
+pub mod library;
+pub mod model;
+
+pub use library::{Library, LibraryError, FORMAT};
+pub use model::{FilterCoefficients, FitRecord, MaterialModel, SourceFile};

@@ -1,0 +1,95 @@
+//! One material model: a fitted IIR filter and the record of its fit.
+
+use serde::{Deserialize, Serialize};
+
+use crate::signal::{Biquad, Sos};
+use crate::units::{Band, SampleRate};
+
+/// A fitted ground material, as stored in a library file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MaterialModel {
+    /// Unique name in its library (e.g. `gravel`).
+    pub name: String,
+    /// The analysis rate the filter runs at.
+    pub sample_rate: SampleRate,
+    /// The band the response was measured and fitted in.
+    pub band_hz: Band,
+    /// Filter order (number of poles).
+    pub order: usize,
+    /// The filter.
+    pub filter: FilterCoefficients,
+    /// How well it fits.
+    pub fit: FitRecord,
+    /// The recordings it was fitted from.
+    pub sources: Vec<SourceFile>,
+}
+
+/// A filter both as second-order sections (what runs) and expanded (for interchange).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FilterCoefficients {
+    /// Rows `[b0, b1, b2, a0, a1, a2]`, cascaded.
+    pub sos: Vec<[f64; 6]>,
+    /// Expanded numerator, coefficients of `z^0, z^-1, ...`.
+    pub b: Vec<f64>,
+    /// Expanded denominator, `a[0] = 1`.
+    pub a: Vec<f64>,
+}
+
+impl FilterCoefficients {
+    /// The coefficients of a cascade.
+    #[must_use]
+    pub fn from_sos(sos: &Sos) -> Self {
+        let (b, a) = sos.to_ba();
+        Self { sos: sos.sections.iter().map(Biquad::to_row).collect(), b, a }
+    }
+
+    /// The cascade, or `None` when a row has `a0 = 0` or a non-finite coefficient.
+    #[must_use]
+    pub fn to_sos(&self) -> Option<Sos> {
+        self.sos.iter().map(|r| Biquad::from_row(*r)).collect::<Option<Vec<_>>>().map(Sos::new)
+    }
+}
+
+/// The evidence of a fit, on the 96-point log-frequency grid of the band.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FitRecord {
+    /// The grid, in hertz.
+    pub grid_hz: Vec<f64>,
+    /// Measured magnitude on the grid.
+    pub measured: Vec<f64>,
+    /// Model magnitude on the grid.
+    pub model: Vec<f64>,
+    /// Normalised RMS error of equation (3) on the magnitude (lower is better; 0 is exact).
+    pub nrmse: f64,
+    /// RMS log-spectral distance in decibels.
+    pub lsd_db: f64,
+    /// How the winning fit was found (e.g. `vector-fit+gauss-newton(log)`).
+    #[serde(default)]
+    pub method: String,
+    /// Number of heel strikes averaged into the measured response.
+    #[serde(default)]
+    pub strikes: usize,
+    /// Wall-clock time of the fit, order search included, in seconds.
+    #[serde(default)]
+    pub fit_seconds: f64,
+}
+
+/// One recording a model was fitted from.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SourceFile {
+    /// File name.
+    pub file: String,
+    /// SHA-256 of its bytes, lower-case hex.
+    pub sha256: String,
+}
+
+impl MaterialModel {
+    /// The filter as a runnable cascade.
+    ///
+    /// A model that passed [`Library`](super::Library) validation always has one; `None`
+    /// only for a hand-built model with malformed rows.
+    #[must_use]
+    pub fn sos(&self) -> Option<Sos> {
+        self.filter.to_sos()
+    }
+}

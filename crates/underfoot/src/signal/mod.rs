@@ -1,0 +1,46 @@
+//! Signal conditioning: the building blocks that turn a raw recording into a clean strike.
+//!
+//! Each block is independent and tested against its closed-form definition.
+pub mod butterworth;
+pub mod filtfilt;
+pub mod resample;
+pub mod savgol;
+pub mod sos;
+pub mod spectrum;
+
+pub use sos::{Biquad, Sos};
+
+/// What can be wrong with the parameters or input of a conditioning block.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SignalError {
+    /// A filter band does not fit the sample rate.
+    #[error("band {band} does not fit sample rate {rate} (need 0 < lo < hi < Nyquist)")]
+    BandOutOfRange {
+        /// The band asked for.
+        band: crate::units::Band,
+        /// The rate it was asked at.
+        rate: crate::units::SampleRate,
+    },
+    /// A cutoff frequency does not fit the sample rate.
+    #[error("cutoff {cutoff} does not fit sample rate {rate} (need 0 < f < Nyquist)")]
+    CutoffOutOfRange {
+        /// The cutoff asked for.
+        cutoff: crate::units::Hz,
+        /// The rate it was asked at.
+        rate: crate::units::SampleRate,
+    },
+    /// A parameter is out of its valid range.
+    #[error("invalid parameter: {0}")]
+    InvalidParameter(String),
+    /// The input is too short for the operation.
+    #[error("input of {len} samples is too short: {what} needs at least {needed}")]
+    TooShort {
+        /// Samples given.
+        len: usize,
+        /// Samples needed.
+        needed: usize,
+        /// The operation.
+        what: &'static str,
+    },
+}

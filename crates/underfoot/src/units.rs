@@ -1,0 +1,189 @@
+//! Physical units as types, so that a bare `f64` is never misread.
+//!
+//! A sample rate is not a frequency, a frequency is not an angular frequency, and a
+//! magnitude is not a level in decibels. Each gets a newtype; conversions are explicit.
+
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// Samples per second of a discrete-time signal.
+///
+/// Kept as an integer because rates are exact in files and devices, and because the
+/// polyphase resampler needs the exact ratio between two rates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct SampleRate(pub u32);
+
+impl SampleRate {
+    /// The rate in hertz, as a float for arithmetic.
+    #[must_use]
+    pub fn hz(self) -> f64 {
+        f64::from(self.0)
+    }
+
+    /// The Nyquist frequency, half the rate.
+    #[must_use]
+    pub fn nyquist(self) -> Hz {
+        Hz(self.hz() / 2.0)
+    }
+
+    /// The duration of `n` samples.
+    #[must_use]
+    pub fn duration_of(self, n: usize) -> Seconds {
+        Seconds(n as f64 / self.hz())
+    }
+
+    /// The number of whole samples in `t` (rounded to nearest).
+    #[must_use]
+    pub fn samples_in(self, t: Seconds) -> usize {
+        (t.0 * self.hz()).round().max(0.0) as usize
+    }
+
+    /// Normalised angular frequency `omega = 2 pi f / fs` in radians per sample.
+    #[must_use]
+    pub fn omega(self, f: Hz) -> f64 {
+        2.0 * std::f64::consts::PI * f.0 / self.hz()
+    }
+}
+
+impl fmt::Display for SampleRate {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} Hz", self.0)
+    }
+}
+
+/// A frequency in hertz (cycles per second).
+#[derive(Debug, Clone, Copy, PartialEq, PartialOrd, Default, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct Hz(pub f64);
+
+impl fmt::Display for Hz {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} Hz", self.0)
+    }
+}
+
+/// A duration in seconds.
+#[derive(Debug, Clone, Copy, PartialEq, PartialOrd, Default, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct Seconds(pub f64);
+
+impl fmt::Display for Seconds {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} s", self.0)
+    }
+}
+
+/// A level or level difference in decibels (20 log10 of an amplitude ratio).
+#[derive(Debug, Clone, Copy, PartialEq, PartialOrd, Default, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct Decibels(pub f64);
+
+impl Decibels {
+    /// The level of an amplitude ratio.
+    #[must_use]
+    pub fn from_amplitude(ratio: f64) -> Self {
+        Self(20.0 * ratio.log10())
+    }
+
+    /// The amplitude ratio of this level.
+    #[must_use]
+    pub fn to_amplitude(self) -> f64 {
+        10f64.powf(self.0 / 20.0)
+    }
+}
+
+impl fmt::Display for Decibels {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} dB", self.0)
+    }
+}
+
+/// A frequency band `[lo, hi]` in hertz.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(into = "[f64; 2]", from = "[f64; 2]")]
+pub struct Band {
+    /// Lower edge.
+    pub lo: Hz,
+    /// Upper edge.
+    pub hi: Hz,
+}
+
+impl Band {
+    /// A band from its edges in hertz. Validity is checked by [`Band::validate`].
+    #[must_use]
+    pub const fn new(lo: f64, hi: f64) -> Self {
+        Self { lo: Hz(lo), hi: Hz(hi) }
+    }
+
+    /// Whether the band is non-empty, positive and below the Nyquist frequency of `rate`.
+    #[must_use]
+    pub fn fits(self, rate: SampleRate) -> bool {
+        self.lo.0.is_finite()
+            && self.hi.0.is_finite()
+            && self.lo.0 > 0.0
+            && self.hi.0 > self.lo.0
+            && self.hi.0 < rate.nyquist().0
+    }
+
+    /// `n` frequencies spaced evenly on a log axis from `lo` to `hi`, both included.
+    #[must_use]
+    pub fn log_grid(self, n: usize) -> Vec<Hz> {
+        match n {
+            0 => Vec::new(),
+            1 => vec![Hz((self.lo.0 * self.hi.0).sqrt())],
+            _ => {
+                let (l, h) = (self.lo.0.ln(), self.hi.0.ln());
+                (0..n)
+                    .map(|i| Hz((l + (h - l) * i as f64 / (n - 1) as f64).exp()))
+                    .collect()
+            }
+        }
+    }
+}
+
+impl From<Band> for [f64; 2] {
+    fn from(b: Band) -> Self {
+        [b.lo.0, b.hi.0]
+    }
+}
+
+impl From<[f64; 2]> for Band {
+    fn from([lo, hi]: [f64; 2]) -> Self {
+        Band::new(lo, hi)
+    }
+}
+
+impl fmt::Display for Band {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}-{} Hz", self.lo.0, self.hi.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn log_grid_spans_band_evenly_in_log() {
+        let g = Band::new(20.0, 900.0).log_grid(96);
+        assert_eq!(g.len(), 96);
+        assert!((g[0].0 - 20.0).abs() < 1e-9 && (g[95].0 - 900.0).abs() < 1e-9);
+        let r0 = g[1].0 / g[0].0;
+        assert!(g.windows(2).all(|w| (w[1].0 / w[0].0 - r0).abs() < 1e-9));
+    }
+
+    #[test]
+    fn band_fits_rate() {
+        assert!(Band::new(20.0, 900.0).fits(SampleRate(2000)));
+        assert!(!Band::new(20.0, 1000.0).fits(SampleRate(2000)));
+        assert!(!Band::new(900.0, 20.0).fits(SampleRate(2000)));
+        assert!(!Band::new(0.0, 20.0).fits(SampleRate(2000)));
+    }
+
+    #[test]
+    fn decibels_round_trip() {
+        assert!((Decibels::from_amplitude(10.0).0 - 20.0).abs() < 1e-12);
+        assert!((Decibels(-6.0).to_amplitude() - 0.501_187).abs() < 1e-6);
+    }
+}
