@@ -24,3 +24,25 @@ pub struct CsvSpec {
     /// The logging rate.
     pub rate: SampleRate,
 }
+
+/// What is wrong with a recording. Every variant names the file.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RecordingError {
+    /// Placeholder until the decoder lands.
+    #[error("{path}: not implemented")]
+    Todo {
+        /// The file.
+        path: std::path::PathBuf,
+    },
+}
+
+/// Reads a recording: WAV, FLAC or Ogg Vorbis by content, or CSV (needs `csv`).
+///
+/// # Errors
+/// A [`RecordingError`] naming the file when it cannot be read, decoded, or is empty,
+/// silent, too short or holds non-finite samples.
+pub fn read(path: &std::path::Path, csv: Option<&CsvSpec>) -> Result<Recording, RecordingError> {
+    let _ = csv;
+    Err(RecordingError::Todo { path: path.to_path_buf() })
+}
