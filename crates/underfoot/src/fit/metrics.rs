@@ -1,0 +1,118 @@
+//! How close a model's magnitude is to the measurement.
+//!
+//! Both metrics compare magnitudes `M_k` (measured) and `S_k` (synthesised) on the same
+//! frequencies, by default 96 log-spaced points of the band.
+//!
+//! **NRMSE** (the paper's equation 3). The paper writes the goodness of fit
+//! `C = 1 - ||M - S|| / ||M - mean(M)||` but tabulates the error term (Table I lists values
+//! from 0.03 to 35, which only the error term can reach). We report the error term
+//!
+//! $$ \mathrm{NRMSE} = \frac{\lVert M - S \rVert_2}{\lVert M - \bar M \rVert_2} $$
+//!
+//! so lower is better, 0 is exact, and 1 is no better than a flat line at the mean.
+//!
+//! **Log-spectral distance** in decibels, the RMS level error:
+//!
+//! $$ \mathrm{LSD} = \sqrt{\tfrac{1}{K} \sum_k \left(20 \log_{10} \frac{S_k}{M_k}\right)^2 } $$
+//!
+//! With a 1 dB intensity JND, an LSD below 1 dB means the average level error is below what
+//! a person can tell apart.
+
+use serde::{Deserialize, Serialize};
+
+use crate::signal::Sos;
+use crate::units::{Hz, SampleRate};
+
+/// Both fit metrics of one model.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Metrics {
+    /// Normalised RMS error of the magnitude (lower is better).
+    pub nrmse: f64,
+    /// RMS log-spectral distance in dB.
+    pub lsd_db: f64,
+}
+
+/// The NRMSE error term of equation (3).
+///
+/// # Panics
+/// If the slices differ in length.
+#[must_use]
+pub fn nrmse(measured: &[f64], model: &[f64]) -> f64 {
+    assert_eq!(measured.len(), model.len(), "measured and model on the same grid");
+    let mean = measured.iter().sum::<f64>() / measured.len().max(1) as f64;
+    let err: f64 = measured.iter().zip(model).map(|(m, s)| (m - s).powi(2)).sum();
+    let spread: f64 = measured.iter().map(|m| (m - mean).powi(2)).sum();
+    (err / spread).sqrt()
+}
+
+/// The RMS log-spectral distance in dB.
+///
+/// # Panics
+/// If the slices differ in length.
+#[must_use]
+pub fn lsd_db(measured: &[f64], model: &[f64]) -> f64 {
+    assert_eq!(measured.len(), model.len(), "measured and model on the same grid");
+    let sum: f64 = measured
+        .iter()
+        .zip(model)
+        .map(|(m, s)| (20.0 * (s / m).log10()).powi(2))
+        .sum();
+    (sum / measured.len().max(1) as f64).sqrt()
+}
+
+/// The grid the metrics are computed on, with the measured magnitude there.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MetricGrid {
+    /// The rate the models run at.
+    pub rate: SampleRate,
+    /// Frequencies.
+    pub freqs: Vec<Hz>,
+    /// Measured magnitude at each frequency.
+    pub measured: Vec<f64>,
+}
+
+impl MetricGrid {
+    /// A filter's magnitude on the grid.
+    #[must_use]
+    pub fn model_magnitude(&self, sos: &Sos) -> Vec<f64> {
+        self.freqs.iter().map(|&f| sos.response(self.rate.omega(f)).norm()).collect()
+    }
+
+    /// Both metrics for a filter.
+    #[must_use]
+    pub fn evaluate(&self, sos: &Sos) -> Metrics {
+        self.evaluate_magnitude(&self.model_magnitude(sos))
+    }
+
+    /// Both metrics for a model magnitude on this grid.
+    #[must_use]
+    pub fn evaluate_magnitude(&self, model: &[f64]) -> Metrics {
+        Metrics { nrmse: nrmse(&self.measured, model), lsd_db: lsd_db(&self.measured, model) }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exact_model_scores_zero() {
+        let m = [1.0, 2.0, 3.0];
+        assert_eq!(nrmse(&m, &m), 0.0);
+        assert_eq!(lsd_db(&m, &m), 0.0);
+    }
+
+    #[test]
+    fn flat_mean_scores_one() {
+        let m = [1.0, 2.0, 3.0, 6.0];
+        let mean = [3.0; 4];
+        assert!((nrmse(&m, &mean) - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn uniform_gain_error_is_its_level() {
+        let m = [0.1, 1.0, 10.0];
+        let s: Vec<f64> = m.iter().map(|v| v * 2.0).collect();
+        assert!((lsd_db(&m, &s) - 20.0 * 2f64.log10()).abs() < 1e-12);
+    }
+}
