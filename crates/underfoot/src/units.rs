@@ -113,7 +113,10 @@ impl Band {
     /// A band from its edges in hertz. Validity is checked by [`Band::validate`].
     #[must_use]
     pub const fn new(lo: f64, hi: f64) -> Self {
-        Self { lo: Hz(lo), hi: Hz(hi) }
+        Self {
+            lo: Hz(lo),
+            hi: Hz(hi),
+        }
     }
 
     /// Whether the band is non-empty, positive and below the Nyquist frequency of `rate`.

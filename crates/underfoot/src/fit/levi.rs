@@ -31,7 +31,12 @@ use super::{FitError, Target};
 ///
 /// # Errors
 /// [`FitError::Numerical`] when the least-squares problem cannot be solved.
-pub fn levi(target: &Target, nb: usize, na: usize, weight: Option<&[f64]>) -> Result<(Vec<f64>, Vec<f64>), FitError> {
+pub fn levi(
+    target: &Target,
+    nb: usize,
+    na: usize,
+    weight: Option<&[f64]>,
+) -> Result<(Vec<f64>, Vec<f64>), FitError> {
     let k = target.len();
     let cols = nb + 1 + na;
     let mut m = DMatrix::<f64>::zeros(2 * k, cols);
@@ -68,7 +73,12 @@ pub fn levi(target: &Target, nb: usize, na: usize, weight: Option<&[f64]>) -> Re
 ///
 /// # Errors
 /// As [`levi`].
-pub fn sanathanan_koerner(target: &Target, nb: usize, na: usize, iterations: usize) -> Result<(Vec<f64>, Vec<f64>), FitError> {
+pub fn sanathanan_koerner(
+    target: &Target,
+    nb: usize,
+    na: usize,
+    iterations: usize,
+) -> Result<(Vec<f64>, Vec<f64>), FitError> {
     let (mut b, mut a) = levi(target, nb, na, None)?;
     let mut w = vec![1.0; target.len()];
     for _ in 0..iterations {
@@ -89,11 +99,16 @@ pub fn sanathanan_koerner(target: &Target, nb: usize, na: usize, iterations: usi
 #[must_use]
 pub fn eval_poly(p: &[f64], omega: f64) -> Complex64 {
     let z1 = Complex64::from_polar(1.0, -omega);
-    p.iter().rev().fold(Complex64::new(0.0, 0.0), |acc, &c| acc * z1 + c)
+    p.iter()
+        .rev()
+        .fold(Complex64::new(0.0, 0.0), |acc, &c| acc * z1 + c)
 }
 
 /// Least squares with unit-norm columns, by SVD.
-pub(crate) fn solve_scaled(mut m: DMatrix<f64>, rhs: &DVector<f64>) -> Result<DVector<f64>, FitError> {
+pub(crate) fn solve_scaled(
+    mut m: DMatrix<f64>,
+    rhs: &DVector<f64>,
+) -> Result<DVector<f64>, FitError> {
     let mut scale = vec![1.0; m.ncols()];
     for (j, s) in scale.iter_mut().enumerate() {
         let n = m.column(j).norm();
@@ -126,7 +141,10 @@ mod tests {
         let b = [0.3, -0.1, 0.05];
         let a = [1.0, -1.2, 0.7];
         let freqs = Band::new(10.0, 950.0).log_grid(100);
-        let h = freqs.iter().map(|&f| eval_poly(&b, rate.omega(f)) / eval_poly(&a, rate.omega(f))).collect();
+        let h = freqs
+            .iter()
+            .map(|&f| eval_poly(&b, rate.omega(f)) / eval_poly(&a, rate.omega(f)))
+            .collect();
         let t = Target::from_response(rate, &freqs, h).unwrap();
         let (fb, fa) = levi(&t, 2, 2, None).unwrap();
         for (x, y) in fb.iter().zip(&b).chain(fa.iter().zip(&a)) {

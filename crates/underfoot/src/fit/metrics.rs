@@ -38,9 +38,17 @@ pub struct Metrics {
 /// If the slices differ in length.
 #[must_use]
 pub fn nrmse(measured: &[f64], model: &[f64]) -> f64 {
-    assert_eq!(measured.len(), model.len(), "measured and model on the same grid");
+    assert_eq!(
+        measured.len(),
+        model.len(),
+        "measured and model on the same grid"
+    );
     let mean = measured.iter().sum::<f64>() / measured.len().max(1) as f64;
-    let err: f64 = measured.iter().zip(model).map(|(m, s)| (m - s).powi(2)).sum();
+    let err: f64 = measured
+        .iter()
+        .zip(model)
+        .map(|(m, s)| (m - s).powi(2))
+        .sum();
     let spread: f64 = measured.iter().map(|m| (m - mean).powi(2)).sum();
     (err / spread).sqrt()
 }
@@ -51,7 +59,11 @@ pub fn nrmse(measured: &[f64], model: &[f64]) -> f64 {
 /// If the slices differ in length.
 #[must_use]
 pub fn lsd_db(measured: &[f64], model: &[f64]) -> f64 {
-    assert_eq!(measured.len(), model.len(), "measured and model on the same grid");
+    assert_eq!(
+        measured.len(),
+        model.len(),
+        "measured and model on the same grid"
+    );
     let sum: f64 = measured
         .iter()
         .zip(model)
@@ -75,7 +87,10 @@ impl MetricGrid {
     /// A filter's magnitude on the grid.
     #[must_use]
     pub fn model_magnitude(&self, sos: &Sos) -> Vec<f64> {
-        self.freqs.iter().map(|&f| sos.response(self.rate.omega(f)).norm()).collect()
+        self.freqs
+            .iter()
+            .map(|&f| sos.response(self.rate.omega(f)).norm())
+            .collect()
     }
 
     /// Both metrics for a filter.
@@ -87,7 +102,10 @@ impl MetricGrid {
     /// Both metrics for a model magnitude on this grid.
     #[must_use]
     pub fn evaluate_magnitude(&self, model: &[f64]) -> Metrics {
-        Metrics { nrmse: nrmse(&self.measured, model), lsd_db: lsd_db(&self.measured, model) }
+        Metrics {
+            nrmse: nrmse(&self.measured, model),
+            lsd_db: lsd_db(&self.measured, model),
+        }
     }
 }
 

@@ -139,7 +139,12 @@ pub struct FitOutcome {
 /// # Errors
 /// [`FitError::InvalidOrder`] for order 0 or above [`MAX_ORDER`]; [`FitError::NoFit`] when
 /// no start yields a stable finite filter.
-pub fn fit_order(target: &Target, grid: &MetricGrid, order: usize, cfg: &FitConfig) -> Result<OrderFit, FitError> {
+pub fn fit_order(
+    target: &Target,
+    grid: &MetricGrid,
+    order: usize,
+    cfg: &FitConfig,
+) -> Result<OrderFit, FitError> {
     if order == 0 || order > MAX_ORDER {
         return Err(FitError::InvalidOrder { order });
     }
@@ -173,7 +178,12 @@ pub fn fit_order(target: &Target, grid: &MetricGrid, order: usize, cfg: &FitConf
 
     let mut best: Option<OrderFit> = None;
     let mut consider = |sos: &Sos, method: String| {
-        if !sos.is_stable() || sos.sections.iter().any(|s| s.b.iter().any(|c| !c.is_finite())) {
+        if !sos.is_stable()
+            || sos
+                .sections
+                .iter()
+                .any(|s| s.b.iter().any(|c| !c.is_finite()))
+        {
             return;
         }
         let m = grid.evaluate(sos);
@@ -181,17 +191,28 @@ pub fn fit_order(target: &Target, grid: &MetricGrid, order: usize, cfg: &FitConf
             return;
         }
         if best.as_ref().is_none_or(|b| m.lsd_db < b.metrics.lsd_db) {
-            best = Some(OrderFit { order, sos: sos.clone(), metrics: m, method, levi: levi_metrics });
+            best = Some(OrderFit {
+                order,
+                sos: sos.clone(),
+                metrics: m,
+                method,
+                levi: levi_metrics,
+            });
         }
     };
     for (name, start) in &starts {
         consider(start, (*name).to_string());
-        let Ok(oe) = refine::refine(start, target, Objective::OutputError, cfg.max_iterations) else {
+        let Ok(oe) = refine::refine(start, target, Objective::OutputError, cfg.max_iterations)
+        else {
             continue;
         };
         consider(&oe.sos, format!("{name} + gauss-newton(output-error)"));
-        if let Ok(lm) = refine::refine(&oe.sos, target, Objective::LogMagnitude, cfg.max_iterations) {
-            consider(&lm.sos, format!("{name} + gauss-newton(output-error) + gauss-newton(log-magnitude)"));
+        if let Ok(lm) = refine::refine(&oe.sos, target, Objective::LogMagnitude, cfg.max_iterations)
+        {
+            consider(
+                &lm.sos,
+                format!("{name} + gauss-newton(output-error) + gauss-newton(log-magnitude)"),
+            );
         }
     }
     best.ok_or(FitError::NoFit { order })
@@ -230,7 +251,11 @@ pub fn fit(
         progress(&f);
         trials.push((order, f.metrics, f.method.clone()));
         let reached = f.metrics.lsd_db <= cfg.target_lsd.0 && f.metrics.nrmse <= cfg.target_nrmse;
-        if best.as_ref().is_none_or(|b| f.metrics.lsd_db < b.metrics.lsd_db) || reached {
+        if best
+            .as_ref()
+            .is_none_or(|b| f.metrics.lsd_db < b.metrics.lsd_db)
+            || reached
+        {
             best = Some(f);
         }
         if reached {
@@ -259,11 +284,18 @@ fn stabilise(sos: &Sos) -> Sos {
             let pair = if s.a[2] == 0.0 {
                 RootPair::Single(fixed[0].re)
             } else if fixed[0].im.abs() > 0.0 {
-                RootPair::Conjugate(if fixed[0].im > 0.0 { fixed[0] } else { fixed[1] })
+                RootPair::Conjugate(if fixed[0].im > 0.0 {
+                    fixed[0]
+                } else {
+                    fixed[1]
+                })
             } else {
                 RootPair::Real(fixed[0].re, fixed[1].re)
             };
-            Biquad { b: s.b.map(|c| c * gain), a: pair.monic() }
+            Biquad {
+                b: s.b.map(|c| c * gain),
+                a: pair.monic(),
+            }
         })
         .collect();
     Sos::new(sections)

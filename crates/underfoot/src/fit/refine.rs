@@ -13,10 +13,12 @@
 //! * the filter is a cascade of sections `B_i(z)/A_i(z)`;
 //! * a second-order denominator `1 + a_1 z^-1 + a_2 z^-2` is written through its reflection
 //!   coefficients, `a_2 = k_2`, `a_1 = k_1 (1 + k_2)`, with `k_i = tanh(u_i)`. The map from
-//!   `(u_1, u_2)` in the whole plane onto the open stability triangle is smooth and onto, so
+//!   `(u_1, u_2)` in the whole plane onto the open stability triangle is smooth and onto
+//!   (scaled by `1 - 1e-12` so that rounding can never reach the circle), so
 //!   an unconstrained step in `u` can never cross the unit circle. A first-order
 //!   denominator is `1 + tanh(u) z^-1`;
-//! * numerators `b_{i0}, b_{i1}, b_{i2}` are free (zeros may lie anywhere).
+//! * numerator coefficients `b_{i0} .. b_{i d_i}` are free (zeros may lie anywhere), up to
+//!   the degree `d_i` each section starts with, so that the order never grows.
 //!
 //! In the log domain `ln H = sum_i ln B_i - ln A_i`, so every derivative is one division:
 //! `d ln H / d b_{ij} = z^{-j} / B_i` and `d ln H / d a_{ij} = -z^{-j} / A_i`, chained
@@ -42,8 +44,20 @@ use num_complex::Complex64;
 use super::{FitError, Target};
 use crate::signal::{Biquad, Sos};
 
-/// Reflection coefficients are kept this far inside `(-1, 1)` when converting in.
-const K_LIMIT: f64 = 1.0 - 1e-15;
+/// Reflection coefficients are `K_MAX tanh(u)`: `tanh` alone rounds to exactly 1 for
+/// `u > 19`, which would put a pole on the circle.
+const K_MAX: f64 = 1.0 - 1e-12;
+
+/// Inverse of the reflection map, clamped so that it stays finite.
+fn to_u(k: f64) -> f64 {
+    (k / K_MAX).clamp(-1.0 + 1e-15, 1.0 - 1e-15).atanh()
+}
+
+/// The reflection map and its derivative.
+fn to_k(u: f64) -> (f64, f64) {
+    let t = u.tanh();
+    (K_MAX * t, K_MAX * (1.0 - t * t))
+}
 
 /// What the refinement minimises.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -81,28 +95,48 @@ impl Den {
     }
 }
 
-/// The parameter layout of a cascade: per section, 3 numerator and 0-2 denominator values.
+/// The parameter layout of a cascade: per section, 1-3 numerator and 0-2 denominator values.
 struct Layout {
+    nums: Vec<usize>,
     dens: Vec<Den>,
 }
 
 impl Layout {
+    fn of(sos: &Sos) -> Self {
+        let nums = sos
+            .sections
+            .iter()
+            .map(|s| {
+                if s.b[2] != 0.0 {
+                    3
+                } else if s.b[1] != 0.0 {
+                    2
+                } else {
+                    1
+                }
+            })
+            .collect();
+        Self {
+            nums,
+            dens: sos.sections.iter().map(Den::of).collect(),
+        }
+    }
+
     fn len(&self) -> usize {
-        self.dens.iter().map(|d| 3 + d.params()).sum()
+        self.nums.iter().sum::<usize>() + self.dens.iter().map(|d| d.params()).sum::<usize>()
     }
 
     fn pack(&self, sos: &Sos) -> Vec<f64> {
         let mut p = Vec::with_capacity(self.len());
-        for (s, d) in sos.sections.iter().zip(&self.dens) {
-            p.extend_from_slice(&s.b);
+        for ((s, d), &nb) in sos.sections.iter().zip(&self.dens).zip(&self.nums) {
+            p.extend_from_slice(&s.b[..nb]);
             match d {
                 Den::Two => {
-                    let k2 = s.a[2].clamp(-K_LIMIT, K_LIMIT);
-                    let k1 = (s.a[1] / (1.0 + k2)).clamp(-K_LIMIT, K_LIMIT);
-                    p.push(k1.atanh());
-                    p.push(k2.atanh());
+                    let k2 = s.a[2];
+                    p.push(to_u(s.a[1] / (1.0 + k2)));
+                    p.push(to_u(k2));
                 }
-                Den::One => p.push(s.a[1].clamp(-K_LIMIT, K_LIMIT).atanh()),
+                Den::One => p.push(to_u(s.a[1])),
                 Den::None => {}
             }
         }
@@ -112,18 +146,19 @@ impl Layout {
     fn unpack(&self, p: &[f64]) -> Vec<Biquad> {
         let mut out = Vec::with_capacity(self.dens.len());
         let mut i = 0;
-        for d in &self.dens {
-            let b = [p[i], p[i + 1], p[i + 2]];
-            i += 3;
+        for (d, &nb) in self.dens.iter().zip(&self.nums) {
+            let mut b = [0.0; 3];
+            b[..nb].copy_from_slice(&p[i..i + nb]);
+            i += nb;
             let a = match d {
                 Den::Two => {
-                    let (k1, k2) = (p[i].tanh(), p[i + 1].tanh());
+                    let (k1, k2) = (to_k(p[i]).0, to_k(p[i + 1]).0);
                     i += 2;
                     [1.0, k1 * (1.0 + k2), k2]
                 }
                 Den::One => {
                     i += 1;
-                    [1.0, p[i - 1].tanh(), 0.0]
+                    [1.0, to_k(p[i - 1]).0, 0.0]
                 }
                 Den::None => [1.0, 0.0, 0.0],
             };
@@ -160,27 +195,31 @@ fn evaluate(
         let h = target.h[k];
         let mut log_h = Complex64::new(0.0, 0.0);
         let mut col = 0;
-        for (s, d) in sections.iter().zip(&layout.dens) {
+        for ((s, d), &nb) in sections.iter().zip(&layout.dens).zip(&layout.nums) {
             let bz = s.b[0] + s.b[1] * z1 + s.b[2] * z2;
             let az = s.a[0] + s.a[1] * z1 + s.a[2] * z2;
             // A zero exactly on the grid would make ln|B| infinite; nudge it.
-            let bz = if bz.norm() < 1e-300 { Complex64::new(1e-300, 0.0) } else { bz };
+            let bz = if bz.norm() < 1e-300 {
+                Complex64::new(1e-300, 0.0)
+            } else {
+                bz
+            };
             log_h += bz.ln() - az.ln();
-            dlog[col] = 1.0 / bz;
-            dlog[col + 1] = z1 / bz;
-            dlog[col + 2] = z2 / bz;
-            col += 3;
+            let powers = [Complex64::new(1.0, 0.0), z1, z2];
+            for (j, zp) in powers.iter().take(nb).enumerate() {
+                dlog[col + j] = zp / bz;
+            }
+            col += nb;
             match d {
                 Den::Two => {
-                    let (k1, k2) = (p[col].tanh(), p[col + 1].tanh());
+                    let ((k1, dk1), (k2, dk2)) = (to_k(p[col]), to_k(p[col + 1]));
                     let (da1, da2) = (-z1 / az, -z2 / az);
-                    dlog[col] = da1 * (1.0 - k1 * k1) * (1.0 + k2);
-                    dlog[col + 1] = da1 * k1 * (1.0 - k2 * k2) + da2 * (1.0 - k2 * k2);
+                    dlog[col] = da1 * dk1 * (1.0 + k2);
+                    dlog[col + 1] = da1 * k1 * dk2 + da2 * dk2;
                     col += 2;
                 }
                 Den::One => {
-                    let k = p[col].tanh();
-                    dlog[col] = -z1 / az * (1.0 - k * k);
+                    dlog[col] = -z1 / az * to_k(p[col]).1;
                     col += 1;
                 }
                 Den::None => {}
@@ -237,11 +276,16 @@ pub struct Refined {
 ///
 /// # Errors
 /// [`FitError::Unstable`] when the starting cascade is not stable.
-pub fn refine(sos: &Sos, target: &Target, objective: Objective, max_iter: usize) -> Result<Refined, FitError> {
+pub fn refine(
+    sos: &Sos,
+    target: &Target,
+    objective: Objective,
+    max_iter: usize,
+) -> Result<Refined, FitError> {
     if !sos.is_stable() {
         return Err(FitError::Unstable);
     }
-    let layout = Layout { dens: sos.sections.iter().map(Den::of).collect() };
+    let layout = Layout::of(sos);
     let np = layout.len();
     let mut p = layout.pack(sos);
     let mut jac = Vec::new();
@@ -267,7 +311,9 @@ pub fn refine(sos: &Sos, target: &Target, objective: Objective, max_iter: usize)
                 jtj[(a, b)] = jtj[(b, a)];
             }
         }
-        let diag: Vec<f64> = (0..np).map(|a| jtj[(a, a)].max(1e-12 * (1.0 + jtj[(a, a)]))).collect();
+        let diag: Vec<f64> = (0..np)
+            .map(|a| jtj[(a, a)].max(1e-12 * (1.0 + jtj[(a, a)])))
+            .collect();
         loop {
             let mut m = jtj.clone();
             for (a, d) in diag.iter().enumerate() {
@@ -304,13 +350,17 @@ pub fn refine(sos: &Sos, target: &Target, objective: Objective, max_iter: usize)
     }
     let sos = Sos::new(layout.unpack(&p));
     debug_assert!(sos.is_stable());
-    Ok(Refined { sos, cost: c, steps })
+    Ok(Refined {
+        sos,
+        cost: c,
+        steps,
+    })
 }
 
 /// The cost of `sos` on `target` for `objective` without refining.
 #[must_use]
 pub fn objective_cost(sos: &Sos, target: &Target, objective: Objective) -> f64 {
-    let layout = Layout { dens: sos.sections.iter().map(Den::of).collect() };
+    let layout = Layout::of(sos);
     let p = layout.pack(sos);
     cost(&evaluate(&layout, &p, target, objective, None))
 }
@@ -321,7 +371,10 @@ mod tests {
     use crate::units::{Band, Hz, SampleRate};
 
     fn target_of(truth: &Sos, rate: SampleRate, freqs: &[Hz]) -> Target {
-        let h = freqs.iter().map(|&f| truth.response(rate.omega(f))).collect();
+        let h = freqs
+            .iter()
+            .map(|&f| truth.response(rate.omega(f)))
+            .collect();
         Target::from_response(rate, freqs, h).unwrap()
     }
 
@@ -330,17 +383,29 @@ mod tests {
     fn jacobian_matches_finite_differences() {
         let rate = SampleRate(2000);
         let sos = Sos::new(vec![
-            Biquad { b: [0.5, 0.1, -0.2], a: [1.0, -1.5, 0.8] },
-            Biquad { b: [1.0, 0.3, 0.0], a: [1.0, -0.4, 0.0] },
+            Biquad {
+                b: [0.5, 0.1, -0.2],
+                a: [1.0, -1.5, 0.8],
+            },
+            Biquad {
+                b: [1.0, 0.3, 0.0],
+                a: [1.0, -0.4, 0.0],
+            },
         ]);
         let freqs = Band::new(20.0, 900.0).log_grid(17);
         let other = Sos::new(vec![
-            Biquad { b: [0.4, 0.2, -0.1], a: [1.0, -1.4, 0.7] },
-            Biquad { b: [1.0, 0.2, 0.1], a: [1.0, -0.3, 0.0] },
+            Biquad {
+                b: [0.4, 0.2, -0.1],
+                a: [1.0, -1.4, 0.7],
+            },
+            Biquad {
+                b: [1.0, 0.2, 0.1],
+                a: [1.0, -0.3, 0.0],
+            },
         ]);
         let t = target_of(&other, rate, &freqs);
         for obj in [Objective::OutputError, Objective::LogMagnitude] {
-            let layout = Layout { dens: sos.sections.iter().map(Den::of).collect() };
+            let layout = Layout::of(sos);
             let p = layout.pack(&sos);
             let mut jac = Vec::new();
             let r0 = evaluate(&layout, &p, &t, obj, Some(&mut jac));
@@ -353,7 +418,10 @@ mod tests {
                 for row in 0..r0.len() {
                     let fd = (r1[row] - r0[row]) / h;
                     let an = jac[row * np + c];
-                    assert!((fd - an).abs() < 1e-4 * (1.0 + an.abs()), "{obj:?} col {c} row {row}: {fd} vs {an}");
+                    assert!(
+                        (fd - an).abs() < 1e-4 * (1.0 + an.abs()),
+                        "{obj:?} col {c} row {row}: {fd} vs {an}"
+                    );
                 }
             }
         }
@@ -363,19 +431,34 @@ mod tests {
     fn refinement_converges_from_a_perturbed_start_and_stays_stable() {
         let rate = SampleRate(2000);
         let truth = Sos::new(vec![
-            Biquad { b: [0.5, 0.1, -0.2], a: [1.0, -1.7, 0.9] },
-            Biquad { b: [1.0, 0.3, 0.2], a: [1.0, 0.2, 0.5] },
+            Biquad {
+                b: [0.5, 0.1, -0.2],
+                a: [1.0, -1.7, 0.9],
+            },
+            Biquad {
+                b: [1.0, 0.3, 0.2],
+                a: [1.0, 0.2, 0.5],
+            },
         ]);
         let freqs = Band::new(20.0, 900.0).log_grid(120);
         let t = target_of(&truth, rate, &freqs);
         let start = Sos::new(vec![
-            Biquad { b: [0.4, 0.2, -0.1], a: [1.0, -1.6, 0.85] },
-            Biquad { b: [0.9, 0.2, 0.1], a: [1.0, 0.1, 0.4] },
+            Biquad {
+                b: [0.4, 0.2, -0.1],
+                a: [1.0, -1.6, 0.85],
+            },
+            Biquad {
+                b: [0.9, 0.2, 0.1],
+                a: [1.0, 0.1, 0.4],
+            },
         ]);
         let out = refine(&start, &t, Objective::OutputError, 200).unwrap();
         assert!(out.sos.is_stable());
         for &f in &freqs {
-            let (x, y) = (out.sos.response(rate.omega(f)), truth.response(rate.omega(f)));
+            let (x, y) = (
+                out.sos.response(rate.omega(f)),
+                truth.response(rate.omega(f)),
+            );
             assert!((x - y).norm() < 1e-6 * y.norm(), "{f}: {x} vs {y}");
         }
     }

@@ -135,7 +135,10 @@ fn sections_from_factors(zeros: Vec<Factor>, poles: &[Complex64], k: f64) -> Vec
         }
     }
 
-    let n_sections = dens.len().max((z_pairs.len() * 2 + z_singles.len()).div_ceil(2)).max(1);
+    let n_sections = dens
+        .len()
+        .max((z_pairs.len() * 2 + z_singles.len()).div_ceil(2))
+        .max(1);
     dens.resize(n_sections, [1.0, 0.0, 0.0]);
     let mut sections = Vec::with_capacity(n_sections);
     for den in dens {
@@ -219,7 +222,11 @@ pub fn reflect_unstable(poles: &[Complex64], max_radius: f64) -> (Vec<Complex64>
                 // |1 - p e^{-jw}| = |p| |1 - (1/p*) e^{-jw}|: compensate |p|.
                 gain /= r;
                 let q = 1.0 / p.conj();
-                if q.norm() > max_radius { q * (max_radius / q.norm()) } else { q }
+                if q.norm() > max_radius {
+                    q * (max_radius / q.norm())
+                } else {
+                    q
+                }
             } else if r > max_radius {
                 p * (max_radius / r)
             } else {
@@ -252,9 +259,16 @@ mod tests {
         let sos = ba_to_sos(&b, &a).unwrap();
         for w in [0.01, 0.3, 1.0, 2.5, 3.1] {
             let z = Complex64::from_polar(1.0, -w);
-            let ev = |p: &[f64]| p.iter().rev().fold(Complex64::new(0.0, 0.0), |acc, &c| acc * z + c);
+            let ev = |p: &[f64]| {
+                p.iter()
+                    .rev()
+                    .fold(Complex64::new(0.0, 0.0), |acc, &c| acc * z + c)
+            };
             let h = ev(&b) / ev(&a);
-            assert!((sos.response(w) - h).norm() < 1e-10 * h.norm().max(1.0), "w={w}");
+            assert!(
+                (sos.response(w) - h).norm() < 1e-10 * h.norm().max(1.0),
+                "w={w}"
+            );
         }
         assert!(sos.is_stable());
     }

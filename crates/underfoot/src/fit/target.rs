@@ -40,9 +40,15 @@ impl Target {
     /// # Errors
     /// [`FitError::BadTarget`] when empty, of mismatched lengths, non-finite, or with a
     /// frequency outside `(0, Nyquist)`.
-    pub fn from_response(rate: SampleRate, freqs: &[Hz], h: Vec<Complex64>) -> Result<Self, FitError> {
+    pub fn from_response(
+        rate: SampleRate,
+        freqs: &[Hz],
+        h: Vec<Complex64>,
+    ) -> Result<Self, FitError> {
         if freqs.is_empty() || freqs.len() != h.len() {
-            return Err(FitError::BadTarget("empty, or frequencies and response differ in length"));
+            return Err(FitError::BadTarget(
+                "empty, or frequencies and response differ in length",
+            ));
         }
         if h.iter().any(|v| !v.re.is_finite() || !v.im.is_finite()) {
             return Err(FitError::BadTarget("non-finite response"));
@@ -52,7 +58,12 @@ impl Target {
         }
         let omega = freqs.iter().map(|&f| rate.omega(f)).collect();
         let weight = vec![1.0; h.len()];
-        Ok(Self { rate, omega, h, weight })
+        Ok(Self {
+            rate,
+            omega,
+            h,
+            weight,
+        })
     }
 
     /// A minimum-phase target from a magnitude spectrum on FFT bins `0..=N/2`
@@ -61,11 +72,19 @@ impl Target {
     /// # Errors
     /// [`FitError::BadTarget`] when the spectrum is too short, non-finite, not positive in
     /// the band, or the band does not fit the rate.
-    pub fn minimum_phase(rate: SampleRate, band: Band, magnitude: &[f64], points: usize) -> Result<Self, FitError> {
+    pub fn minimum_phase(
+        rate: SampleRate,
+        band: Band,
+        magnitude: &[f64],
+        points: usize,
+    ) -> Result<Self, FitError> {
         let h = minimum_phase_spectrum(rate, band, magnitude)?;
         let bin_hz = rate.hz() / (2 * (magnitude.len() - 1)) as f64;
         let freqs = band.log_grid(points);
-        let response = freqs.iter().map(|f| interpolate_complex(&h, bin_hz, f.0)).collect();
+        let response = freqs
+            .iter()
+            .map(|f| interpolate_complex(&h, bin_hz, f.0))
+            .collect();
         Self::from_response(rate, &freqs, response)
     }
 
@@ -87,7 +106,11 @@ impl Target {
 ///
 /// # Errors
 /// See [`Target::minimum_phase`].
-pub fn minimum_phase_spectrum(rate: SampleRate, band: Band, magnitude: &[f64]) -> Result<Vec<Complex64>, FitError> {
+pub fn minimum_phase_spectrum(
+    rate: SampleRate,
+    band: Band,
+    magnitude: &[f64],
+) -> Result<Vec<Complex64>, FitError> {
     if magnitude.len() < 8 {
         return Err(FitError::BadTarget("spectrum has fewer than 8 bins"));
     }
@@ -100,7 +123,9 @@ pub fn minimum_phase_spectrum(rate: SampleRate, band: Band, magnitude: &[f64]) -
     let hi_bin = ((band.hi.0 / bin_hz).floor() as usize).clamp(lo_bin, magnitude.len() - 1);
     let in_band = &magnitude[lo_bin..=hi_bin];
     if in_band.iter().any(|m| !m.is_finite() || *m <= 0.0) {
-        return Err(FitError::BadTarget("magnitude not finite and positive in the band"));
+        return Err(FitError::BadTarget(
+            "magnitude not finite and positive in the band",
+        ));
     }
     let mut log_mag: Vec<f64> = (0..magnitude.len())
         .map(|k| magnitude[k.clamp(lo_bin, hi_bin)].ln())
@@ -162,19 +187,32 @@ mod tests {
         let rate = SampleRate(2000);
         // Zeros and poles inside the unit circle: minimum phase.
         let sos = Sos::new(vec![
-            Biquad { b: [1.0, -0.5, 0.2], a: [1.0, -1.6, 0.8] },
-            Biquad { b: [0.5, 0.3, 0.1], a: [1.0, 0.4, 0.5] },
+            Biquad {
+                b: [1.0, -0.5, 0.2],
+                a: [1.0, -1.6, 0.8],
+            },
+            Biquad {
+                b: [0.5, 0.3, 0.1],
+                a: [1.0, 0.4, 0.5],
+            },
         ]);
         let n = 8192;
         let mag: Vec<f64> = (0..=n / 2)
-            .map(|k| sos.response(std::f64::consts::TAU * k as f64 / n as f64).norm())
+            .map(|k| {
+                sos.response(std::f64::consts::TAU * k as f64 / n as f64)
+                    .norm()
+            })
             .collect();
         // A band covering almost everything, so the flat extension barely matters.
         let band = Band::new(0.5, 999.5);
         let h = minimum_phase_spectrum(rate, band, &mag).unwrap();
         for k in (10..n / 2 - 10).step_by(97) {
             let truth = sos.response(std::f64::consts::TAU * k as f64 / n as f64);
-            assert!((h[k] - truth).norm() < 1e-3 * truth.norm(), "bin {k}: {} vs {truth}", h[k]);
+            assert!(
+                (h[k] - truth).norm() < 1e-3 * truth.norm(),
+                "bin {k}: {} vs {truth}",
+                h[k]
+            );
         }
     }
 }

@@ -30,8 +30,8 @@ use num_complex::Complex64;
 use super::levi::solve_scaled;
 use super::roots::{ba_to_sos, sections_from_roots};
 use super::{FitError, Target};
-use crate::signal::sos::poly_mul;
 use crate::signal::Sos;
+use crate::signal::sos::poly_mul;
 
 /// Poles are kept at most this far out during relocation.
 const MAX_RADIUS: f64 = 1.0 - 1e-9;
@@ -95,7 +95,12 @@ fn realisation(poles: &[Pole]) -> (DMatrix<f64>, DVector<f64>) {
 }
 
 /// Eigenvalues of `A - b c^T / d` as poles (pairs and reals).
-fn eig_poles(a: &DMatrix<f64>, b: &DVector<f64>, c: &[f64], d: f64) -> Result<Vec<Complex64>, FitError> {
+fn eig_poles(
+    a: &DMatrix<f64>,
+    b: &DVector<f64>,
+    c: &[f64],
+    d: f64,
+) -> Result<Vec<Complex64>, FitError> {
     let mut m = a.clone();
     for i in 0..m.nrows() {
         for j in 0..m.ncols() {
@@ -114,7 +119,11 @@ fn classify(eigs: &[Complex64]) -> Vec<Pole> {
     let mut poles = Vec::new();
     for &e in eigs {
         let e = if e.norm() >= 1.0 { 1.0 / e.conj() } else { e };
-        let e = if e.norm() > MAX_RADIUS { e * (MAX_RADIUS / e.norm()) } else { e };
+        let e = if e.norm() > MAX_RADIUS {
+            e * (MAX_RADIUS / e.norm())
+        } else {
+            e
+        };
         if e.im.abs() <= 1e-12 * e.norm().max(1e-300) {
             poles.push(Pole::Real(e.re));
         } else if e.im > 0.0 {
@@ -229,7 +238,11 @@ fn to_sos(poles: &[Pole], c: &[f64], d: f64) -> Result<Sos, FitError> {
     for (i, &p) in poles.iter().enumerate() {
         // Numerator of this term over its own denominator, in powers of z^-1.
         let term = match p {
-            Pole::Pair(p) => vec![0.0, 2.0 * c[idx], -2.0 * c[idx] * p.re - 2.0 * c[idx + 1] * p.im],
+            Pole::Pair(p) => vec![
+                0.0,
+                2.0 * c[idx],
+                -2.0 * c[idx] * p.re - 2.0 * c[idx + 1] * p.im,
+            ],
             Pole::Real(_) => vec![0.0, c[idx]],
         };
         idx += p.width();
@@ -255,11 +268,20 @@ mod tests {
     fn recovers_a_fourth_order_filter() {
         let rate = SampleRate(2000);
         let truth = Sos::new(vec![
-            Biquad { b: [0.2, 0.1, -0.05], a: [1.0, -1.8, 0.95] },
-            Biquad { b: [1.0, -0.4, 0.3], a: [1.0, 0.3, 0.6] },
+            Biquad {
+                b: [0.2, 0.1, -0.05],
+                a: [1.0, -1.8, 0.95],
+            },
+            Biquad {
+                b: [1.0, -0.4, 0.3],
+                a: [1.0, 0.3, 0.6],
+            },
         ]);
         let freqs = Band::new(5.0, 990.0).log_grid(200);
-        let h = freqs.iter().map(|&f| truth.response(rate.omega(f))).collect();
+        let h = freqs
+            .iter()
+            .map(|&f| truth.response(rate.omega(f)))
+            .collect();
         let t = Target::from_response(rate, &freqs, h).unwrap();
         let fit = vector_fit(&t, 4, 10).unwrap();
         for &f in &freqs {

@@ -8,5 +8,5 @@ pub mod builtin;
 pub mod library;
 pub mod model;
 
-pub use library::{Library, LibraryError, FORMAT};
+pub use library::{FORMAT, Library, LibraryError};
 pub use model::{FilterCoefficients, FitRecord, MaterialModel, SourceFile};

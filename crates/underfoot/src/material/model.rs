@@ -40,13 +40,21 @@ impl FilterCoefficients {
     #[must_use]
     pub fn from_sos(sos: &Sos) -> Self {
         let (b, a) = sos.to_ba();
-        Self { sos: sos.sections.iter().map(Biquad::to_row).collect(), b, a }
+        Self {
+            sos: sos.sections.iter().map(Biquad::to_row).collect(),
+            b,
+            a,
+        }
     }
 
     /// The cascade, or `None` when a row has `a0 = 0` or a non-finite coefficient.
     #[must_use]
     pub fn to_sos(&self) -> Option<Sos> {
-        self.sos.iter().map(|r| Biquad::from_row(*r)).collect::<Option<Vec<_>>>().map(Sos::new)
+        self.sos
+            .iter()
+            .map(|r| Biquad::from_row(*r))
+            .collect::<Option<Vec<_>>>()
+            .map(Sos::new)
     }
 }
 

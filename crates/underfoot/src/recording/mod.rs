@@ -44,5 +44,7 @@ pub enum RecordingError {
 /// silent, too short or holds non-finite samples.
 pub fn read(path: &std::path::Path, csv: Option<&CsvSpec>) -> Result<Recording, RecordingError> {
     let _ = csv;
-    Err(RecordingError::Todo { path: path.to_path_buf() })
+    Err(RecordingError::Todo {
+        path: path.to_path_buf(),
+    })
 }

@@ -28,7 +28,10 @@ pub struct Biquad {
 
 impl Biquad {
     /// The section that passes its input unchanged.
-    pub const IDENTITY: Self = Self { b: [1.0, 0.0, 0.0], a: [1.0, 0.0, 0.0] };
+    pub const IDENTITY: Self = Self {
+        b: [1.0, 0.0, 0.0],
+        a: [1.0, 0.0, 0.0],
+    };
 
     /// A section from a row `[b0, b1, b2, a0, a1, a2]`, normalised by `a0`.
     ///
@@ -48,7 +51,9 @@ impl Biquad {
     /// The row `[b0, b1, b2, 1, a1, a2]`.
     #[must_use]
     pub fn to_row(&self) -> [f64; 6] {
-        [self.b[0], self.b[1], self.b[2], self.a[0], self.a[1], self.a[2]]
+        [
+            self.b[0], self.b[1], self.b[2], self.a[0], self.a[1], self.a[2],
+        ]
     }
 
     /// The section with the given pair of poles and pair of zeros (each either a complex
@@ -57,7 +62,10 @@ impl Biquad {
     pub fn from_roots(zeros: RootPair, poles: RootPair, k: f64) -> Self {
         let [_, z1, z2] = zeros.monic();
         let a = poles.monic();
-        Self { b: [k, k * z1, k * z2], a }
+        Self {
+            b: [k, k * z1, k * z2],
+            a,
+        }
     }
 
     /// Complex response at `omega` radians per sample.
@@ -65,7 +73,8 @@ impl Biquad {
     pub fn response(&self, omega: f64) -> Complex64 {
         let z1 = Complex64::from_polar(1.0, -omega);
         let z2 = z1 * z1;
-        (self.b[0] + self.b[1] * z1 + self.b[2] * z2) / (self.a[0] + self.a[1] * z1 + self.a[2] * z2)
+        (self.b[0] + self.b[1] * z1 + self.b[2] * z2)
+            / (self.a[0] + self.a[1] * z1 + self.a[2] * z2)
     }
 
     /// Whether both poles lie strictly inside the unit circle.
@@ -125,7 +134,10 @@ pub fn quadratic_roots(c1: f64, c2: f64) -> [Complex64; 2] {
         [Complex64::new(r1, 0.0), Complex64::new(r2, 0.0)]
     } else {
         let im = (-disc).sqrt() / 2.0;
-        [Complex64::new(-c1 / 2.0, im), Complex64::new(-c1 / 2.0, -im)]
+        [
+            Complex64::new(-c1 / 2.0, im),
+            Complex64::new(-c1 / 2.0, -im),
+        ]
     }
 }
 
@@ -143,13 +155,21 @@ impl Sos {
         Self { sections }
     }
 
-    /// The number of poles (twice the sections, less one per first-order section).
+    /// The order: the larger of the expanded numerator's and denominator's degrees.
     #[must_use]
     pub fn order(&self) -> usize {
-        self.sections
-            .iter()
-            .map(|s| if s.a[2] == 0.0 && s.b[2] == 0.0 { 1 } else { 2 })
-            .sum()
+        let deg = |c: &[f64; 3]| {
+            if c[2] != 0.0 {
+                2
+            } else if c[1] != 0.0 {
+                1
+            } else {
+                0
+            }
+        };
+        let nb: usize = self.sections.iter().map(|s| deg(&s.b)).sum();
+        let na: usize = self.sections.iter().map(|s| deg(&s.a)).sum();
+        nb.max(na)
     }
 
     /// Complex response at `omega` radians per sample.
@@ -251,7 +271,13 @@ mod tests {
 
     #[test]
     fn quadratic_roots_are_roots() {
-        for (c1, c2) in [(-1.9, 0.95), (0.5, -0.3), (-2.0, 1.0), (0.0, 0.0), (3.0, 2.0)] {
+        for (c1, c2) in [
+            (-1.9, 0.95),
+            (0.5, -0.3),
+            (-2.0, 1.0),
+            (0.0, 0.0),
+            (3.0, 2.0),
+        ] {
             for r in quadratic_roots(c1, c2) {
                 let v = r * r + c1 * r + c2;
                 assert!(v.norm() < 1e-12, "c1={c1} c2={c2} r={r}");
@@ -263,7 +289,10 @@ mod tests {
     fn stability_triangle_matches_pole_radius() {
         for a1 in [-1.99, -1.5, 0.0, 0.7, 1.2, 1.99] {
             for a2 in [-0.99, -0.5, 0.0, 0.5, 0.98, 1.01] {
-                let s = Biquad { b: [1.0, 0.0, 0.0], a: [1.0, a1, a2] };
+                let s = Biquad {
+                    b: [1.0, 0.0, 0.0],
+                    a: [1.0, a1, a2],
+                };
                 let by_roots = s.poles().iter().all(|p| p.norm() < 1.0);
                 assert_eq!(s.is_stable(), by_roots, "a1={a1} a2={a2}");
             }
@@ -272,14 +301,18 @@ mod tests {
 
     #[test]
     fn impulse_response_matches_recursion() {
-        let s = Sos::new(vec![Biquad { b: [0.5, 0.2, -0.1], a: [1.0, -1.2, 0.5] }]);
+        let s = Sos::new(vec![Biquad {
+            b: [0.5, 0.2, -0.1],
+            a: [1.0, -1.2, 0.5],
+        }]);
         let h = s.impulse_response(20);
         let mut y = [0.0f64; 20];
         for n in 0..20 {
             let x = |k: isize| if k == 0 { 1.0 } else { 0.0 };
             let n_i = n as isize;
             let yp = |k: isize| if k >= 0 { y[k as usize] } else { 0.0 };
-            y[n] = 0.5 * x(n_i) + 0.2 * x(n_i - 1) - 0.1 * x(n_i - 2) + 1.2 * yp(n_i - 1) - 0.5 * yp(n_i - 2);
+            y[n] = 0.5 * x(n_i) + 0.2 * x(n_i - 1) - 0.1 * x(n_i - 2) + 1.2 * yp(n_i - 1)
+                - 0.5 * yp(n_i - 2);
         }
         for n in 0..20 {
             assert!((h[n] - y[n]).abs() < 1e-12);
@@ -288,8 +321,14 @@ mod tests {
 
     #[test]
     fn response_of_cascade_is_product() {
-        let a = Biquad { b: [1.0, 0.3, 0.1], a: [1.0, -0.9, 0.4] };
-        let b = Biquad { b: [0.2, -0.1, 0.0], a: [1.0, 0.5, 0.0] };
+        let a = Biquad {
+            b: [1.0, 0.3, 0.1],
+            a: [1.0, -0.9, 0.4],
+        };
+        let b = Biquad {
+            b: [0.2, -0.1, 0.0],
+            a: [1.0, 0.5, 0.0],
+        };
         let s = Sos::new(vec![a, b]);
         let w = 0.7;
         assert!((s.response(w) - a.response(w) * b.response(w)).norm() < 1e-14);
@@ -297,7 +336,11 @@ mod tests {
         assert_eq!(s.order(), 3);
         assert_eq!(bb.len(), 4);
         let z = Complex64::from_polar(1.0, -w);
-        let eval = |p: &[f64]| p.iter().rev().fold(Complex64::new(0.0, 0.0), |acc, &c| acc * z + c);
+        let eval = |p: &[f64]| {
+            p.iter()
+                .rev()
+                .fold(Complex64::new(0.0, 0.0), |acc, &c| acc * z + c)
+        };
         assert!((eval(&bb) / eval(&aa) - s.response(w)).norm() < 1e-12);
     }
 }
