@@ -1,9 +1,19 @@
-//! TODO(lead): fitting a material model from recordings.
+//! Fitting a material model from recordings: the whole pipeline in one call.
+//!
+//! recordings -> [`measure`](crate::analysis::measure) -> minimum-phase
+//! [`Target`](crate::fit::Target) on a log grid of the band -> [`fit`](crate::fit::fit)
+//! with its order search -> [`MaterialModel`], whose `fit` record holds the measured and
+//! model magnitudes on 96 log-spaced frequencies of the band and both metrics there.
 
-use crate::analysis::{AnalysisConfig, AnalysisError};
-use crate::fit::{FitConfig, FitError};
-use crate::material::MaterialModel;
+use std::time::Instant;
+
+use crate::analysis::{measure, AnalysisConfig, AnalysisError, MeasuredResponse};
+use crate::fit::{fit, FitConfig, FitError, MetricGrid, Metrics, Target};
+use crate::material::{FilterCoefficients, FitRecord, MaterialModel, SourceFile};
 use crate::recording::Recording;
+
+/// Frequencies of the metric grid stored in a model.
+pub const METRIC_POINTS: usize = 96;
 
 /// Everything that shapes a material fit.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -62,6 +72,81 @@ pub fn build_material(
     cfg: &BuildConfig,
     progress: &mut dyn FnMut(&Progress),
 ) -> Result<MaterialModel, BuildError> {
-    let _ = (recordings, cfg, progress);
-    Err(BuildError::InvalidName(name.to_string()))
+    build_material_with_report(name, recordings, cfg, progress).map(|(m, _)| m)
+}
+
+/// What a build found besides the model: the measurement, and every order tried.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BuildReport {
+    /// The measured response that was fitted.
+    pub measured: MeasuredResponse,
+    /// The plain Levi fit at the chosen order, for comparison.
+    pub levi: Option<Metrics>,
+    /// Every order tried: order, metrics, method.
+    pub trials: Vec<(usize, Metrics, String)>,
+}
+
+/// As [`build_material`], also returning the [`BuildReport`].
+///
+/// # Errors
+/// As [`build_material`].
+pub fn build_material_with_report(
+    name: &str,
+    recordings: &[Recording],
+    cfg: &BuildConfig,
+    progress: &mut dyn FnMut(&Progress),
+) -> Result<(MaterialModel, BuildReport), BuildError> {
+    if !valid_name(name) {
+        return Err(BuildError::InvalidName(name.to_string()));
+    }
+    let started = Instant::now();
+    let a = &cfg.analysis;
+    let measured = measure(recordings, a)?;
+    progress(&Progress::Measured { strikes: measured.strikes.len() });
+
+    let target = Target::minimum_phase(a.rate, a.band, &measured.magnitude, cfg.fit.grid_points)?;
+    let freqs = a.band.log_grid(METRIC_POINTS);
+    let grid = MetricGrid { rate: a.rate, measured: measured.on_grid(&freqs), freqs };
+    let max_order = match cfg.fit.order {
+        crate::fit::OrderChoice::Auto { max } => max,
+        crate::fit::OrderChoice::Fixed(n) => n,
+    };
+    let outcome = fit(&target, &grid, &cfg.fit, &mut |f| {
+        progress(&Progress::OrderTried {
+            order: f.order,
+            max_order,
+            lsd_db: f.metrics.lsd_db,
+            nrmse: f.metrics.nrmse,
+        });
+    })?;
+    let best = outcome.best;
+    let model = MaterialModel {
+        name: name.to_string(),
+        sample_rate: a.rate,
+        band_hz: a.band,
+        order: best.sos.order(),
+        filter: FilterCoefficients::from_sos(&best.sos),
+        fit: FitRecord {
+            grid_hz: grid.freqs.iter().map(|f| f.0).collect(),
+            model: grid.model_magnitude(&best.sos),
+            measured: grid.measured.clone(),
+            nrmse: best.metrics.nrmse,
+            lsd_db: best.metrics.lsd_db,
+            method: best.method.clone(),
+            strikes: measured.strikes.len(),
+            fit_seconds: started.elapsed().as_secs_f64(),
+        },
+        sources: recordings
+            .iter()
+            .map(|r| SourceFile { file: r.name.clone(), sha256: r.sha256.clone() })
+            .collect(),
+    };
+    Ok((model, BuildReport { measured, levi: best.levi, trials: outcome.trials }))
+}
+
+/// Names are what a file name, a CLI argument and a JSON key can all hold without quoting.
+fn valid_name(name: &str) -> bool {
+    !name.is_empty()
+        && name.len() <= 64
+        && name.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
 }

@@ -1,0 +1,42 @@
+//! The built-in presets are what `scripts/refit-builtin` makes from the shared recordings:
+//! refitting each from its sources gives the same order and the same response.
+//!
+//! Needs `../shared/data/footsteps` (skipped with a note when absent, unless
+//! `UNDERFOOT_REQUIRE_DATA=1`, as in CI).
+
+mod common;
+
+use underfoot::material::build::{build_material, BuildConfig};
+use underfoot::material::builtin::builtin;
+use underfoot::recording::read;
+
+#[test]
+fn builtin_library_covers_the_papers_materials() {
+    let lib = builtin();
+    for name in ["gravel", "hard", "sand", "dirt", "snow"] {
+        let m = lib.get(name).unwrap_or_else(|e| panic!("{e}"));
+        assert!(m.sos().is_some_and(|s| s.is_stable()), "{name}");
+        assert!(m.fit.lsd_db <= 1.0, "{name}: {}", m.fit.lsd_db);
+    }
+}
+
+#[test]
+fn builtin_library_is_current() {
+    let Some(root) = common::footsteps_dir() else { return };
+    for preset in &builtin().materials {
+        let recs: Vec<_> = preset
+            .sources
+            .iter()
+            .map(|s| read(&root.join(&preset.name).join(&s.file), None).unwrap_or_else(|e| panic!("{e}")))
+            .collect();
+        for (rec, src) in recs.iter().zip(&preset.sources) {
+            assert_eq!(rec.sha256, src.sha256, "{}: {} changed since the presets were fitted", preset.name, src.file);
+        }
+        let refit = build_material(&preset.name, &recs, &BuildConfig::default(), &mut |_| {}).unwrap();
+        assert_eq!(refit.order, preset.order, "{}: run scripts/refit-builtin", preset.name);
+        for (f, (a, b)) in preset.fit.grid_hz.iter().zip(refit.fit.model.iter().zip(&preset.fit.model)) {
+            let db = 20.0 * (a / b).log10();
+            assert!(db.abs() < 0.1, "{} at {f} Hz: refit differs by {db} dB; run scripts/refit-builtin", preset.name);
+        }
+    }
+}
