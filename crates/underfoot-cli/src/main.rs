@@ -1,1 +1,51 @@
-fn main() {}
+//! `underfoot`: fit ground-material models from footstep recordings, manage library
+//! files, and show what the built-in materials look like.
+//!
+//! Results go to stdout, progress bars and warnings to stderr (bars only when stderr is a
+//! terminal). Any error ends the program with a message on stderr and exit status 1;
+//! command-line mistakes exit with status 2.
+
+mod commands;
+mod output;
+mod plot;
+mod report;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// Learn how the ground vibrates underfoot, from recordings of footsteps.
+#[derive(Debug, Parser)]
+#[command(name = "underfoot", version, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Fit a material model to recordings and store it in a library file.
+    Fit(commands::fit::FitArgs),
+    /// Inspect and edit library files (or the built-in library).
+    #[command(subcommand)]
+    Library(commands::library::LibraryCommand),
+    /// Show the built-in materials: their fit table and spectra.
+    Demo(commands::demo::DemoArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Fit(args) => commands::fit::run(&args),
+        Command::Library(cmd) => commands::library::run(&cmd),
+        Command::Demo(args) => commands::demo::run(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            // `{:#}` prints the whole context chain on one line: "what we did: why it failed".
+            eprintln!("underfoot: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

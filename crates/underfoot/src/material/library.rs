@@ -1,22 +1,953 @@
-//! TODO(helper): the versioned JSON library.
+//! The versioned JSON library file: many [`MaterialModel`]s under one format tag.
+//!
+//! # File format
+//!
+//! A library is one UTF-8 JSON object:
+//!
+//! ```json
+//! {
+//!   "format": "underfoot.library/1",
+//!   "materials": [
+//!     {
+//!       "name": "gravel",
+//!       "sample_rate": 2000,
+//!       "band_hz": [20.0, 900.0],
+//!       "order": 2,
+//!       "filter": {
+//!         "sos": [[0.1, 0.0, -0.1, 1.0, -1.6, 0.81]],
+//!         "b": [0.1, 0.0, -0.1],
+//!         "a": [1.0, -1.6, 0.81]
+//!       },
+//!       "fit": {
+//!         "grid_hz": [20.0, "..."], "measured": ["..."], "model": ["..."],
+//!         "nrmse": 0.05, "lsd_db": 0.4,
+//!         "method": "vector-fit+gauss-newton(log)", "strikes": 12, "fit_seconds": 3.1
+//!       },
+//!       "sources": [{ "file": "gravel-01.wav", "sha256": "<64 lower-case hex digits>" }]
+//!     }
+//!   ]
+//! }
+//! ```
+//!
+//! * `format` comes first in meaning: a reader checks it before it looks at anything else,
+//!   so that a file from a newer version is reported as such rather than as a pile of
+//!   field errors. This version reads and writes only [`FORMAT`].
+//! * `filter.sos` is what runs; `b`/`a` are the same filter expanded, for interchange with
+//!   other tools, and must agree with `sos` (relative tolerance [`BA_TOLERANCE`]).
+//! * `order` is the number of poles: two per section, one per first-order section
+//!   (`a2 = b2 = 0`).
+//! * Every section must be stable (both poles strictly inside the unit circle): a library
+//!   is played back on a device, and an unstable filter there is a loud, growing tone.
+//! * `fit` holds the evidence of the fit on a log-frequency grid: three arrays of one
+//!   length, and finite, non-negative metrics.
+//!
+//! Every load validates the whole file, and every save validates before it writes, so a
+//! file written by this module is always readable by it. Saves are atomic: a crash or an
+//! error part-way leaves the previous file as it was.
+
+use std::fmt;
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use serde::{Deserialize, Serialize};
+
+use super::MaterialModel;
 
 /// The format tag of the library files this version reads and writes.
 pub const FORMAT: &str = "underfoot.library/1";
 
+/// Every format tag this version can read.
+pub const SUPPORTED_FORMATS: &[&str] = &[FORMAT];
+
+/// How closely the expanded `b`/`a` must match the expansion of `sos`, relative to the
+/// largest coefficient of each polynomial.
+///
+/// Loose enough for an expansion done by another tool in another order of operations,
+/// tight enough that a hand-edited or stale coefficient is caught.
+pub const BA_TOLERANCE: f64 = 1e-8;
+
 /// A library of material models.
-#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Library {
     /// Always [`FORMAT`].
     pub format: String,
     /// The materials, in insertion order, names unique.
-    pub materials: Vec<super::MaterialModel>,
+    pub materials: Vec<MaterialModel>,
 }
 
-/// What is wrong with a library file.
+/// What is wrong with a library file or a library operation.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum LibraryError {
-    /// Placeholder.
-    #[error("todo")]
-    Todo,
+    /// The file could not be read or written.
+    #[error("{path}: {action}: {source}", path = path.display())]
+    Io {
+        /// The file (or, for a save, the temporary file next to it).
+        path: PathBuf,
+        /// What was being done, e.g. `reading` or `renaming the temporary file over it`.
+        action: &'static str,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The text is not JSON, or not JSON of the shape of a library.
+    #[error("{origin}: not a valid library file at line {line}, column {column}: {message}")]
+    Json {
+        /// Where the text came from (file path or a description).
+        origin: String,
+        /// 1-based line of the error.
+        line: usize,
+        /// 1-based column of the error.
+        column: usize,
+        /// What the JSON parser objected to.
+        message: String,
+    },
+    /// The `format` tag is missing or names a version this one cannot read.
+    #[error("{origin}: {}; this version of underfoot reads {}",
+        match found {
+            Some(f) => format!("unsupported library format {f:?}"),
+            None => "no \"format\" tag (is this an underfoot library file?)".to_string(),
+        },
+        supported_list())]
+    UnknownFormat {
+        /// Where the text came from.
+        origin: String,
+        /// The tag found, if any (non-string tags are shown as JSON).
+        found: Option<String>,
+    },
+    /// A material in the library breaks a rule of the format.
+    #[error("{origin}: material {material:?}: {reason}")]
+    Invalid {
+        /// Where the library came from or is going to.
+        origin: String,
+        /// The material's name (empty when the name itself is the problem).
+        material: String,
+        /// What is wrong, naming the field.
+        reason: String,
+    },
+    /// No material of that name.
+    #[error(
+        "no material named {name:?} in the library; {}",
+        AvailableList(available)
+    )]
+    NotFound {
+        /// The name asked for.
+        name: String,
+        /// The names the library does hold.
+        available: Vec<String>,
+    },
+}
+
+fn supported_list() -> String {
+    SUPPORTED_FORMATS
+        .iter()
+        .map(|f| format!("{f:?}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+struct AvailableList<'a>(&'a [String]);
+
+impl fmt::Display for AvailableList<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.0.is_empty() {
+            f.write_str("the library is empty")
+        } else {
+            write!(f, "available: {}", self.0.join(", "))
+        }
+    }
+}
+
+impl Default for Library {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Library {
+    /// An empty library of the current format.
+    #[must_use]
+    pub fn new() -> Self {
+        Self {
+            format: FORMAT.to_string(),
+            materials: Vec::new(),
+        }
+    }
+
+    /// Parses and validates a library from JSON text.
+    ///
+    /// `origin` names where the text came from (a path, `built-in`, ...) in errors.
+    ///
+    /// # Errors
+    /// [`LibraryError::Json`] for text that is not JSON or not shaped like a library,
+    /// [`LibraryError::UnknownFormat`] for a missing or unsupported `format` tag, and
+    /// [`LibraryError::Invalid`] for a material that breaks a rule of the format.
+    pub fn from_json(text: &str, origin: &str) -> Result<Self, LibraryError> {
+        let json_error = |e: serde_json::Error| LibraryError::Json {
+            origin: origin.to_string(),
+            line: e.line(),
+            column: e.column(),
+            message: strip_position(&e.to_string()),
+        };
+        // The tag is checked on an untyped parse first, so that a file of another version
+        // is reported as such and not as whatever field it happens to lack.
+        let value: serde_json::Value = serde_json::from_str(text).map_err(json_error)?;
+        let found = match value.get("format") {
+            None => None,
+            Some(serde_json::Value::String(s)) => Some(s.clone()),
+            Some(other) => Some(other.to_string()),
+        };
+        if found.as_deref() != Some(FORMAT) {
+            return Err(LibraryError::UnknownFormat {
+                origin: origin.to_string(),
+                found,
+            });
+        }
+        // Parsed again from the text rather than from `value`: only the text parser knows
+        // line and column, which is what a person fixing the file needs.
+        let library: Library = serde_json::from_str(text).map_err(json_error)?;
+        library.validate_as(origin)?;
+        Ok(library)
+    }
+
+    /// Reads and validates a library file.
+    ///
+    /// # Errors
+    /// [`LibraryError::Io`] when the file cannot be read, and the errors of
+    /// [`Library::from_json`] (with the path as origin).
+    pub fn load(path: impl AsRef<Path>) -> Result<Self, LibraryError> {
+        let path = path.as_ref();
+        let text = fs::read_to_string(path).map_err(|source| LibraryError::Io {
+            path: path.to_path_buf(),
+            action: "reading",
+            source,
+        })?;
+        Self::from_json(&text, &path.display().to_string())
+    }
+
+    /// Reads a library file, or returns an empty library when there is no file yet.
+    ///
+    /// Only a missing file counts as empty: a file that exists but cannot be read or is
+    /// broken is an error, so that a later save never overwrites a library by accident.
+    ///
+    /// # Errors
+    /// As [`Library::load`], except for a missing file.
+    pub fn load_or_new(path: impl AsRef<Path>) -> Result<Self, LibraryError> {
+        let path = path.as_ref();
+        match fs::read_to_string(path) {
+            Ok(text) => Self::from_json(&text, &path.display().to_string()),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(Self::new()),
+            Err(source) => Err(LibraryError::Io {
+                path: path.to_path_buf(),
+                action: "reading",
+                source,
+            }),
+        }
+    }
+
+    /// The library as pretty-printed JSON, with a final newline.
+    #[must_use]
+    pub fn to_json(&self) -> String {
+        // Serialising these types cannot fail: every map key is a string, and serde_json
+        // writes non-finite floats as null rather than failing.
+        let mut s = serde_json::to_string_pretty(self)
+            .expect("a library always serialises: its maps have string keys");
+        s.push('\n');
+        s
+    }
+
+    /// Validates the library and writes it to `path` atomically.
+    ///
+    /// The text goes to a temporary file in the same directory, which is flushed to disk
+    /// and then renamed over `path`. On any error the previous file at `path` (if any) is
+    /// left exactly as it was and the temporary file is removed.
+    ///
+    /// # Errors
+    /// The errors of [`Library::validate`] (nothing is written), or [`LibraryError::Io`].
+    pub fn save(&self, path: impl AsRef<Path>) -> Result<(), LibraryError> {
+        let path = path.as_ref();
+        self.validate_as(&format!("library to be saved to {}", path.display()))?;
+        write_atomic(path, self.to_json().as_bytes())
+    }
+
+    /// Inserts `model`, replacing (in place) a material of the same name.
+    ///
+    /// Returns the replaced material. The model is not validated here; [`Library::save`]
+    /// does that before anything reaches a file.
+    pub fn upsert(&mut self, model: MaterialModel) -> Option<MaterialModel> {
+        match self.materials.iter_mut().find(|m| m.name == model.name) {
+            Some(slot) => Some(std::mem::replace(slot, model)),
+            None => {
+                self.materials.push(model);
+                None
+            }
+        }
+    }
+
+    /// Removes and returns the material called `name`.
+    ///
+    /// # Errors
+    /// [`LibraryError::NotFound`] listing the names the library does hold.
+    pub fn remove(&mut self, name: &str) -> Result<MaterialModel, LibraryError> {
+        match self.materials.iter().position(|m| m.name == name) {
+            Some(i) => Ok(self.materials.remove(i)),
+            None => Err(self.not_found(name)),
+        }
+    }
+
+    /// The material called `name`.
+    ///
+    /// # Errors
+    /// [`LibraryError::NotFound`] listing the names the library does hold.
+    pub fn get(&self, name: &str) -> Result<&MaterialModel, LibraryError> {
+        self.materials
+            .iter()
+            .find(|m| m.name == name)
+            .ok_or_else(|| self.not_found(name))
+    }
+
+    /// The names of the materials, in library order.
+    #[must_use]
+    pub fn names(&self) -> Vec<&str> {
+        self.materials.iter().map(|m| m.name.as_str()).collect()
+    }
+
+    /// Checks the format tag, that names are unique, and every material
+    /// (see [`validate_model`]).
+    ///
+    /// # Errors
+    /// [`LibraryError::UnknownFormat`] or [`LibraryError::Invalid`] for the first problem found.
+    pub fn validate(&self) -> Result<(), LibraryError> {
+        self.validate_as("library")
+    }
+
+    fn validate_as(&self, origin: &str) -> Result<(), LibraryError> {
+        if self.format != FORMAT {
+            return Err(LibraryError::UnknownFormat {
+                origin: origin.to_string(),
+                found: Some(self.format.clone()),
+            });
+        }
+        for (i, m) in self.materials.iter().enumerate() {
+            let invalid = |reason: String| LibraryError::Invalid {
+                origin: origin.to_string(),
+                material: m.name.clone(),
+                reason,
+            };
+            validate_model(m).map_err(|r| invalid(format!("materials[{i}]: {r}")))?;
+            if let Some(j) = self.materials[..i].iter().position(|o| o.name == m.name) {
+                return Err(invalid(format!(
+                    "materials[{i}]: duplicate name (also materials[{j}]); names must be unique"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    fn not_found(&self, name: &str) -> LibraryError {
+        LibraryError::NotFound {
+            name: name.to_string(),
+            available: self.names().into_iter().map(str::to_string).collect(),
+        }
+    }
+}
+
+/// Checks one material against the rules of the format (see the module docs).
+///
+/// Used by [`Library`] on every load and save, and usable on a freshly built model.
+///
+/// # Errors
+/// The first problem found, as a sentence naming the field, e.g.
+/// `filter.sos[1]: unstable section: pole radius 1.02 (must be < 1)`.
+pub fn validate_model(m: &MaterialModel) -> Result<(), String> {
+    validate_name(&m.name)?;
+    if m.sample_rate.0 == 0 {
+        return Err("sample_rate is 0".to_string());
+    }
+    if !m.band_hz.fits(m.sample_rate) {
+        return Err(format!(
+            "band_hz [{}, {}] does not fit sample_rate {} (need 0 < lo < hi < {})",
+            m.band_hz.lo.0,
+            m.band_hz.hi.0,
+            m.sample_rate,
+            m.sample_rate.nyquist()
+        ));
+    }
+    let sos = validate_sections(&m.filter.sos)?;
+    if m.order != sos.order() {
+        return Err(format!(
+            "order is {} but filter.sos has {} poles ({} sections)",
+            m.order,
+            sos.order(),
+            sos.sections.len()
+        ));
+    }
+    let (b, a) = sos.to_ba();
+    check_expanded("filter.b", &m.filter.b, &b)?;
+    check_expanded("filter.a", &m.filter.a, &a)?;
+    validate_fit(&m.fit)?;
+    for (i, s) in m.sources.iter().enumerate() {
+        if s.file.is_empty() {
+            return Err(format!("sources[{i}].file is empty"));
+        }
+        let hex = |c: char| c.is_ascii_digit() || ('a'..='f').contains(&c);
+        if s.sha256.len() != 64 || !s.sha256.chars().all(hex) {
+            return Err(format!(
+                "sources[{i}].sha256 {:?} is not 64 lower-case hex digits",
+                s.sha256
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Checks a material name: non-empty, only letters, digits, `-`, `_` and `.`.
+///
+/// # Errors
+/// What is wrong with the name, as a sentence.
+pub fn validate_name(name: &str) -> Result<(), String> {
+    if name.is_empty() {
+        return Err("name is empty".to_string());
+    }
+    // Names end up as command-line arguments and file names; keep them to characters
+    // that need no quoting anywhere.
+    if let Some(c) = name
+        .chars()
+        .find(|&c| !(c.is_alphanumeric() || matches!(c, '-' | '_' | '.')))
+    {
+        return Err(format!(
+            "name contains {c:?}: use letters, digits, '-', '_' or '.'"
+        ));
+    }
+    Ok(())
+}
+
+fn validate_sections(rows: &[[f64; 6]]) -> Result<crate::signal::Sos, String> {
+    if rows.is_empty() {
+        return Err("filter.sos has no sections".to_string());
+    }
+    let mut sections = Vec::with_capacity(rows.len());
+    for (i, row) in rows.iter().enumerate() {
+        if let Some(k) = row.iter().position(|c| !c.is_finite()) {
+            return Err(format!("filter.sos[{i}][{k}] is not finite"));
+        }
+        let Some(s) = crate::signal::Biquad::from_row(*row) else {
+            return Err(format!("filter.sos[{i}] has a0 = 0"));
+        };
+        if !s.is_stable() {
+            let radius = s.poles().iter().map(|p| p.norm()).fold(0.0, f64::max);
+            return Err(format!(
+                "filter.sos[{i}] is an unstable section: pole radius {radius:.6} (must be < 1)"
+            ));
+        }
+        sections.push(s);
+    }
+    Ok(crate::signal::Sos::new(sections))
+}
+
+fn check_expanded(field: &str, stored: &[f64], expected: &[f64]) -> Result<(), String> {
+    if stored.len() != expected.len() {
+        return Err(format!(
+            "{field} has {} coefficients but filter.sos expands to {}",
+            stored.len(),
+            expected.len()
+        ));
+    }
+    let scale = expected
+        .iter()
+        .fold(0.0f64, |m, c| m.max(c.abs()))
+        .max(f64::MIN_POSITIVE);
+    for (k, (s, e)) in stored.iter().zip(expected).enumerate() {
+        let close = (s - e).abs() <= BA_TOLERANCE * scale;
+        // A NaN compares false, so it fails here too.
+        if !close {
+            return Err(format!(
+                "{field}[{k}] is {s} but filter.sos expands to {e} (they must agree)"
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn validate_fit(fit: &super::FitRecord) -> Result<(), String> {
+    let n = fit.grid_hz.len();
+    if fit.measured.len() != n || fit.model.len() != n {
+        return Err(format!(
+            "fit arrays differ in length: grid_hz {n}, measured {}, model {}",
+            fit.measured.len(),
+            fit.model.len()
+        ));
+    }
+    if let Some(k) = fit
+        .grid_hz
+        .iter()
+        .position(|f| !(f.is_finite() && *f > 0.0))
+    {
+        return Err(format!(
+            "fit.grid_hz[{k}] = {} is not a positive frequency",
+            fit.grid_hz[k]
+        ));
+    }
+    if let Some(k) = fit.grid_hz.windows(2).position(|w| w[1] <= w[0]) {
+        return Err(format!("fit.grid_hz is not increasing at index {}", k + 1));
+    }
+    for (field, values) in [("measured", &fit.measured), ("model", &fit.model)] {
+        if let Some(k) = values.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
+            return Err(format!(
+                "fit.{field}[{k}] = {} is not a finite, non-negative magnitude",
+                values[k]
+            ));
+        }
+    }
+    for (field, v) in [
+        ("nrmse", fit.nrmse),
+        ("lsd_db", fit.lsd_db),
+        ("fit_seconds", fit.fit_seconds),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(format!("fit.{field} = {v} is not finite and non-negative"));
+        }
+    }
+    Ok(())
+}
+
+/// serde_json appends " at line L column C" to its messages; the error variant carries
+/// those as fields, so the message drops them to avoid saying it twice.
+fn strip_position(message: &str) -> String {
+    match message.rfind(" at line ") {
+        Some(i) => message[..i].to_string(),
+        None => message.to_string(),
+    }
+}
+
+/// Writes `contents` to `path` atomically: a temporary file in the same directory,
+/// flushed to disk, renamed over `path`.
+///
+/// Public so that tools writing files next to a library (reports) get the same guarantee.
+/// If `path` already exists its permissions are kept. On error the temporary file is
+/// removed and `path` is untouched.
+///
+/// # Errors
+/// [`LibraryError::Io`] naming the file and the step that failed.
+pub fn write_atomic(path: &Path, contents: &[u8]) -> Result<(), LibraryError> {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let io = |p: &Path, action: &'static str| {
+        let p = p.to_path_buf();
+        move |source| LibraryError::Io {
+            path: p,
+            action,
+            source,
+        }
+    };
+    let file_name = path.file_name().ok_or_else(|| {
+        io(path, "choosing a temporary file")(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "the path does not name a file",
+        ))
+    })?;
+    // Same directory as the target, so that the rename stays on one file system and is
+    // atomic; pid and counter keep concurrent writers out of each other's way.
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let tmp_name = format!(
+        ".{}.tmp-{}-{}",
+        file_name.to_string_lossy(),
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    );
+    let tmp = dir.join(tmp_name);
+
+    let result = (|| {
+        let mut f = fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp)
+            .map_err(io(&tmp, "creating a temporary file"))?;
+        f.write_all(contents)
+            .map_err(io(&tmp, "writing the temporary file"))?;
+        if let Ok(meta) = fs::metadata(path) {
+            f.set_permissions(meta.permissions())
+                .map_err(io(&tmp, "copying permissions to the temporary file"))?;
+        }
+        f.sync_all()
+            .map_err(io(&tmp, "flushing the temporary file to disk"))?;
+        drop(f);
+        fs::rename(&tmp, path).map_err(io(path, "renaming the temporary file over it"))
+    })();
+    if result.is_err() {
+        // Best effort: the error that matters is the one being returned.
+        let _ = fs::remove_file(&tmp);
+        return result;
+    }
+    // Make the rename itself durable. Not every platform can open a directory; the data
+    // is already safe in the file, so a failure here is not worth failing the save.
+    if let Ok(d) = fs::File::open(&dir) {
+        let _ = d.sync_all();
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::{FilterCoefficients, FitRecord, SourceFile};
+    use crate::signal::{Biquad, Sos};
+    use crate::units::{Band, SampleRate};
+
+    /// A valid model: one resonant section whose fit record is its own response.
+    fn model(name: &str) -> MaterialModel {
+        let rate = SampleRate(2000);
+        let band = Band::new(20.0, 900.0);
+        let sos = Sos::new(vec![Biquad {
+            b: [0.1, 0.0, -0.1],
+            a: [1.0, -1.6, 0.81],
+        }]);
+        let grid: Vec<f64> = band.log_grid(16).iter().map(|f| f.0).collect();
+        let mag: Vec<f64> = grid
+            .iter()
+            .map(|&f| sos.response(rate.omega(crate::units::Hz(f))).norm())
+            .collect();
+        MaterialModel {
+            name: name.to_string(),
+            sample_rate: rate,
+            band_hz: band,
+            order: sos.order(),
+            filter: FilterCoefficients::from_sos(&sos),
+            fit: FitRecord {
+                grid_hz: grid,
+                measured: mag.clone(),
+                model: mag,
+                nrmse: 0.0,
+                lsd_db: 0.0,
+                method: "hand".to_string(),
+                strikes: 3,
+                fit_seconds: 0.5,
+            },
+            sources: vec![SourceFile {
+                file: "a.wav".to_string(),
+                sha256: "ab".repeat(32),
+            }],
+        }
+    }
+
+    fn library(names: &[&str]) -> Library {
+        Library {
+            format: FORMAT.to_string(),
+            materials: names.iter().map(|n| model(n)).collect(),
+        }
+    }
+
+    fn invalid_reason(m: MaterialModel) -> String {
+        let lib = Library {
+            format: FORMAT.to_string(),
+            materials: vec![m],
+        };
+        match Library::from_json(&lib.to_json(), "test.json") {
+            Err(LibraryError::Invalid { origin, reason, .. }) => {
+                assert_eq!(origin, "test.json");
+                reason
+            }
+            other => panic!("expected Invalid, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn round_trips_through_json() {
+        let lib = library(&["gravel", "snow"]);
+        let back = Library::from_json(&lib.to_json(), "mem").expect("valid");
+        assert_eq!(back, lib);
+        assert_eq!(back.names(), ["gravel", "snow"]);
+        assert!(Library::new().validate().is_ok());
+    }
+
+    #[test]
+    fn json_syntax_error_gives_line_and_column() {
+        let text = "{\n  \"format\": \"underfoot.library/1\",\n  \"materials\": [,]\n}";
+        match Library::from_json(text, "bad.json") {
+            Err(e @ LibraryError::Json { line: 3, .. }) => {
+                let msg = e.to_string();
+                assert!(msg.starts_with("bad.json:"), "{msg}");
+                assert!(msg.contains("line 3, column"), "{msg}");
+            }
+            other => panic!("expected Json at line 3, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn wrong_shape_is_a_json_error() {
+        let text = r#"{"format": "underfoot.library/1", "materials": [{"name": "x"}]}"#;
+        match Library::from_json(text, "o") {
+            Err(LibraryError::Json { message, .. }) => assert!(message.contains("missing field")),
+            other => panic!("expected Json, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn unknown_or_missing_format_is_reported_with_supported_versions() {
+        let v2 = r#"{"format": "underfoot.library/2", "materials": [{"whatever": 1}]}"#;
+        let e = Library::from_json(v2, "new.json").expect_err("v2");
+        assert!(
+            matches!(&e, LibraryError::UnknownFormat { found: Some(f), .. } if f == "underfoot.library/2")
+        );
+        let msg = e.to_string();
+        assert!(
+            msg.contains("underfoot.library/2") && msg.contains(FORMAT),
+            "{msg}"
+        );
+
+        let none = Library::from_json(r#"{"materials": []}"#, "o").expect_err("no tag");
+        assert!(matches!(
+            none,
+            LibraryError::UnknownFormat { found: None, .. }
+        ));
+        let num = Library::from_json(r#"{"format": 1, "materials": []}"#, "o").expect_err("num");
+        assert!(matches!(num, LibraryError::UnknownFormat { found: Some(f), .. } if f == "1"));
+        let arr = Library::from_json("[]", "o").expect_err("array");
+        assert!(matches!(
+            arr,
+            LibraryError::UnknownFormat { found: None, .. }
+        ));
+    }
+
+    #[test]
+    fn invalid_names_are_rejected() {
+        assert!(invalid_reason(model("")).contains("name is empty"));
+        assert!(invalid_reason(model("a b")).contains("name contains ' '"));
+        let lib = library(&["a", "b", "a"]);
+        match Library::from_json(&lib.to_json(), "o") {
+            Err(LibraryError::Invalid {
+                material, reason, ..
+            }) => {
+                assert_eq!(material, "a");
+                assert!(
+                    reason.contains("duplicate") && reason.contains("materials[0]"),
+                    "{reason}"
+                );
+            }
+            other => panic!("expected duplicate, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn rate_and_band_are_checked() {
+        let mut m = model("m");
+        m.sample_rate = SampleRate(0);
+        assert!(invalid_reason(m).contains("sample_rate is 0"));
+        let mut m = model("m");
+        m.band_hz = Band::new(20.0, 1000.0);
+        assert!(invalid_reason(m).contains("band_hz"));
+        let mut m = model("m");
+        m.band_hz = Band::new(500.0, 100.0);
+        assert!(invalid_reason(m).contains("band_hz"));
+    }
+
+    #[test]
+    fn malformed_sections_are_rejected() {
+        let mut m = model("m");
+        m.filter.sos.clear();
+        assert!(invalid_reason(m).contains("no sections"));
+        let mut m = model("m");
+        m.filter.sos[0][3] = 0.0;
+        assert!(invalid_reason(m).contains("a0 = 0"));
+        // NaN cannot be written as JSON, so check the in-memory path too.
+        let mut m = model("m");
+        m.filter.sos[0][1] = f64::NAN;
+        let r = validate_model(&m).expect_err("nan");
+        assert!(r.contains("filter.sos[0][1] is not finite"), "{r}");
+        let lib = Library {
+            format: FORMAT.to_string(),
+            materials: vec![m],
+        };
+        assert!(matches!(lib.validate(), Err(LibraryError::Invalid { .. })));
+    }
+
+    #[test]
+    fn unstable_section_is_rejected() {
+        let mut m = model("m");
+        // Poles at radius sqrt(1.0201) = 1.01: just outside the unit circle.
+        let sos = Sos::new(vec![Biquad {
+            b: [0.1, 0.0, -0.1],
+            a: [1.0, -1.6, 1.0201],
+        }]);
+        m.filter = FilterCoefficients::from_sos(&sos);
+        let r = invalid_reason(m);
+        assert!(r.contains("unstable") && r.contains("1.01"), "{r}");
+        // On the circle is unstable too.
+        let mut m = model("m");
+        m.filter.sos[0][5] = 1.0;
+        m.filter.a[2] = 1.0;
+        assert!(invalid_reason(m).contains("unstable"));
+    }
+
+    #[test]
+    fn order_must_match_sections() {
+        let mut m = model("m");
+        m.order = 4;
+        let r = invalid_reason(m);
+        assert!(r.contains("order is 4") && r.contains("2 poles"), "{r}");
+    }
+
+    #[test]
+    fn expanded_coefficients_must_match_sections() {
+        let mut m = model("m");
+        m.filter.a[1] *= 1.0 + 1e-6;
+        assert!(invalid_reason(m).contains("filter.a[1]"));
+        let mut m = model("m");
+        m.filter.b.push(0.0);
+        assert!(invalid_reason(m).contains("filter.b has 4 coefficients"));
+        // Rounding noise well inside the tolerance is accepted.
+        let mut m = model("m");
+        m.filter.a[1] *= 1.0 + 1e-12;
+        assert!(validate_model(&m).is_ok());
+    }
+
+    #[test]
+    fn fit_record_is_checked() {
+        let mut m = model("m");
+        m.fit.model.pop();
+        assert!(invalid_reason(m).contains("fit arrays differ in length"));
+        let mut m = model("m");
+        m.fit.grid_hz.swap(0, 1);
+        assert!(invalid_reason(m).contains("not increasing"));
+        let mut m = model("m");
+        m.fit.measured[2] = -1.0;
+        assert!(invalid_reason(m).contains("fit.measured[2]"));
+        let mut m = model("m");
+        m.fit.lsd_db = f64::INFINITY;
+        assert!(validate_model(&m).expect_err("inf").contains("fit.lsd_db"));
+        let mut m = model("m");
+        m.fit.nrmse = -0.1;
+        assert!(invalid_reason(m).contains("fit.nrmse"));
+        let mut m = model("m");
+        m.sources[0].sha256 = "XYZ".to_string();
+        assert!(invalid_reason(m).contains("sources[0].sha256"));
+    }
+
+    #[test]
+    fn upsert_replaces_in_place_and_get_remove_report_missing_names() {
+        let mut lib = library(&["a", "b", "c"]);
+        let mut b2 = model("b");
+        b2.fit.strikes = 99;
+        let old = lib.upsert(b2).expect("replaced");
+        assert_eq!(old.fit.strikes, 3);
+        assert_eq!(lib.names(), ["a", "b", "c"]);
+        assert_eq!(lib.get("b").expect("b").fit.strikes, 99);
+        assert!(lib.upsert(model("d")).is_none());
+        assert_eq!(lib.names(), ["a", "b", "c", "d"]);
+
+        assert_eq!(lib.remove("a").expect("a").name, "a");
+        match lib.remove("a") {
+            Err(e @ LibraryError::NotFound { .. }) => {
+                let LibraryError::NotFound {
+                    ref name,
+                    ref available,
+                } = e
+                else {
+                    unreachable!()
+                };
+                assert_eq!(name, "a");
+                assert_eq!(available, &["b", "c", "d"]);
+                assert!(e.to_string().contains("available: b, c, d"));
+            }
+            other => panic!("expected NotFound, got {other:?}"),
+        }
+        let empty = Library::new();
+        assert!(
+            empty
+                .get("x")
+                .expect_err("empty")
+                .to_string()
+                .contains("library is empty")
+        );
+    }
+
+    fn dir_entries(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = fs::read_dir(dir)
+            .expect("read dir")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn save_and_load_round_trip_without_leftovers() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("lib.json");
+        let lib = library(&["gravel"]);
+        lib.save(&path).expect("save");
+        assert_eq!(Library::load(&path).expect("load"), lib);
+        // Overwrite an existing file.
+        let lib2 = library(&["gravel", "sand"]);
+        lib2.save(&path).expect("save again");
+        assert_eq!(Library::load(&path).expect("load"), lib2);
+        assert_eq!(dir_entries(dir.path()), ["lib.json"]);
+    }
+
+    #[test]
+    fn saving_an_invalid_library_leaves_the_old_file_untouched() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("lib.json");
+        library(&["gravel"]).save(&path).expect("save");
+        let before = fs::read(&path).expect("read");
+
+        let mut bad = library(&["gravel"]);
+        bad.materials[0].filter.sos[0][5] = 1.5;
+        let e = bad.save(&path).expect_err("unstable");
+        assert!(matches!(e, LibraryError::Invalid { .. }));
+        assert!(e.to_string().contains("library to be saved to"), "{e}");
+        assert_eq!(fs::read(&path).expect("read"), before);
+        assert_eq!(dir_entries(dir.path()), ["lib.json"]);
+    }
+
+    #[test]
+    fn failed_write_leaves_target_and_no_temp_file() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        // The target is a non-empty directory: renaming a file over it must fail, after
+        // the temporary file has been written.
+        let target = dir.path().join("lib.json");
+        fs::create_dir(&target).expect("mkdir");
+        fs::write(target.join("keep"), b"x").expect("write");
+        match library(&["a"]).save(&target) {
+            Err(LibraryError::Io { path, action, .. }) => {
+                assert_eq!(path, target);
+                assert!(action.contains("renaming"), "{action}");
+            }
+            other => panic!("expected Io, got {other:?}"),
+        }
+        assert_eq!(dir_entries(dir.path()), ["lib.json"]);
+        assert_eq!(fs::read(target.join("keep")).expect("kept"), b"x");
+    }
+
+    #[test]
+    fn load_reports_io_and_load_or_new_accepts_only_a_missing_file() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let missing = dir.path().join("none.json");
+        match Library::load(&missing) {
+            Err(e @ LibraryError::Io { .. }) => {
+                assert!(e.to_string().contains("none.json"), "{e}");
+            }
+            other => panic!("expected Io, got {other:?}"),
+        }
+        assert_eq!(
+            Library::load_or_new(&missing).expect("empty"),
+            Library::new()
+        );
+
+        let broken = dir.path().join("broken.json");
+        fs::write(&broken, "{").expect("write");
+        assert!(matches!(
+            Library::load_or_new(&broken),
+            Err(LibraryError::Json { .. })
+        ));
+        // A directory exists but is not a readable file.
+        assert!(matches!(
+            Library::load_or_new(dir.path()),
+            Err(LibraryError::Io { .. })
+        ));
+    }
 }

@@ -1,0 +1,286 @@
+//! `underfoot fit`: recordings in, one material model out, stored in a library file.
+//!
+//! Everything that can be checked without the recordings (arguments, the `--out` library,
+//! output directories) is checked before the slow fit, and the library is only ever
+//! replaced atomically after a successful fit: a failed run leaves `--out` as it was.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use underfoot::fit::OrderChoice;
+use underfoot::material::Library;
+use underfoot::material::build::{BuildConfig, Progress, build_material};
+use underfoot::material::library::{validate_name, write_atomic};
+use underfoot::recording::{self, CsvSpec};
+use underfoot::units::{Band, Decibels, SampleRate};
+
+use crate::output::emit;
+use crate::plot::{self, Omitted, Panel};
+use crate::report::{FitReport, FitReportEntry};
+
+/// Arguments of `underfoot fit`.
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// Name of the material (letters, digits, '-', '_', '.'); replaces a material of the
+    /// same name in the library.
+    #[arg(long, value_name = "NAME")]
+    material: String,
+    /// Library file to add the material to (created if missing).
+    #[arg(long, value_name = "LIB.json")]
+    out: PathBuf,
+    /// Also write a JSON summary of the fit here.
+    #[arg(long, value_name = "R.json")]
+    report: Option<PathBuf>,
+    /// Also draw measured vs model magnitude here (.svg or .png).
+    #[arg(long, value_name = "P.svg|P.png")]
+    plot: Option<PathBuf>,
+    /// Analysis sample rate in Hz [default: 2000].
+    #[arg(long, value_name = "HZ", value_parser = parse_rate)]
+    rate: Option<SampleRate>,
+    /// Band of interest in Hz [default: 20:900].
+    #[arg(long, value_name = "LO:HI", value_parser = parse_band)]
+    band: Option<Band>,
+    /// Fit exactly this filter order.
+    #[arg(long, value_name = "N", value_parser = parse_order, conflicts_with = "max_order")]
+    order: Option<usize>,
+    /// Search orders up to N and keep the lowest that meets the targets [default: 16].
+    #[arg(long, value_name = "N", value_parser = parse_order)]
+    max_order: Option<usize>,
+    /// Target log-spectral distance of the order search, in dB [default: 0.5].
+    #[arg(long, value_name = "DB", value_parser = parse_positive)]
+    target_lsd: Option<f64>,
+    /// For CSV recordings: the column holding the signal (header name or 0-based index).
+    #[arg(long, value_name = "C", requires = "csv_rate")]
+    csv_column: Option<String>,
+    /// For CSV recordings: the rate the data was logged at, in Hz.
+    #[arg(long, value_name = "HZ", value_parser = parse_rate, requires = "csv_column")]
+    csv_rate: Option<SampleRate>,
+    /// Recordings of heel strikes on the material (WAV, FLAC, Ogg Vorbis, CSV).
+    #[arg(required = true, value_name = "FILES")]
+    files: Vec<PathBuf>,
+}
+
+fn parse_rate(s: &str) -> Result<SampleRate, String> {
+    match s.trim().parse::<u32>() {
+        Ok(r) if r > 0 => Ok(SampleRate(r)),
+        _ => Err(format!(
+            "{s:?} is not a sample rate: expected a whole number of Hz above 0"
+        )),
+    }
+}
+
+fn parse_band(s: &str) -> Result<Band, String> {
+    let bad = || format!("{s:?} is not a band: expected LO:HI in Hz, e.g. 20:900");
+    let (lo, hi) = s.split_once(':').ok_or_else(bad)?;
+    let lo: f64 = lo.trim().parse().map_err(|_| bad())?;
+    let hi: f64 = hi.trim().parse().map_err(|_| bad())?;
+    if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
+        return Err(format!("band {s:?}: need 0 < LO < HI"));
+    }
+    Ok(Band::new(lo, hi))
+}
+
+fn parse_order(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n) if n > 0 => Ok(n),
+        _ => Err(format!(
+            "{s:?} is not a filter order: expected a whole number above 0"
+        )),
+    }
+}
+
+fn parse_positive(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("{s:?}: expected a number above 0")),
+    }
+}
+
+impl FitArgs {
+    fn config(&self) -> anyhow::Result<BuildConfig> {
+        let mut cfg = BuildConfig::default();
+        if let Some(rate) = self.rate {
+            cfg.analysis.rate = rate;
+        }
+        if let Some(band) = self.band {
+            cfg.analysis.band = band;
+        }
+        if !cfg.analysis.band.fits(cfg.analysis.rate) {
+            bail!(
+                "band {} does not fit the analysis rate {}: the upper edge must be below {} \
+                 (use --band or --rate)",
+                cfg.analysis.band,
+                cfg.analysis.rate,
+                cfg.analysis.rate.nyquist()
+            );
+        }
+        match (self.order, self.max_order) {
+            (Some(n), _) => cfg.fit.order = OrderChoice::Fixed(n),
+            (None, Some(max)) => cfg.fit.order = OrderChoice::Auto { max },
+            (None, None) => {}
+        }
+        if let Some(t) = self.target_lsd {
+            cfg.fit.target_lsd = Decibels(t);
+        }
+        Ok(cfg)
+    }
+
+    fn csv(&self) -> Option<CsvSpec> {
+        match (&self.csv_column, self.csv_rate) {
+            (Some(column), Some(rate)) => Some(CsvSpec {
+                column: column.clone(),
+                rate,
+            }),
+            _ => None,
+        }
+    }
+}
+
+/// The directory a file will be written in, which must exist before the fit starts.
+fn check_parent_dir(file: &Path, what: &str) -> anyhow::Result<()> {
+    let dir = match file.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        bail!(
+            "{what} {}: directory {} does not exist",
+            file.display(),
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
+fn bar(len: u64, template: &str) -> ProgressBar {
+    // Bars are for people watching; in logs and pipes they are noise.
+    let target = if std::io::stderr().is_terminal() {
+        ProgressDrawTarget::stderr()
+    } else {
+        ProgressDrawTarget::hidden()
+    };
+    let bar = ProgressBar::with_draw_target(Some(len), target);
+    if let Ok(style) = ProgressStyle::with_template(template) {
+        bar.set_style(style);
+    }
+    bar
+}
+
+/// Runs `underfoot fit`.
+pub fn run(args: &FitArgs) -> anyhow::Result<()> {
+    validate_name(&args.material).map_err(|e| anyhow::anyhow!("--material: {e}"))?;
+    let cfg = args.config()?;
+    check_parent_dir(&args.out, "library")?;
+    if let Some(report) = &args.report {
+        check_parent_dir(report, "report")?;
+    }
+    if let Some(p) = &args.plot {
+        plot::Format::of(p)?;
+        check_parent_dir(p, "plot")?;
+    }
+    // Before the slow part: a broken library must not cost a fit to find out about.
+    let mut library = Library::load_or_new(&args.out)?;
+
+    let csv = args.csv();
+    let reading = bar(
+        args.files.len() as u64,
+        "reading  [{bar:30}] {pos}/{len} {msg}",
+    );
+    let mut recordings = Vec::with_capacity(args.files.len());
+    for path in &args.files {
+        reading.set_message(path.display().to_string());
+        // Every RecordingError names its file.
+        recordings.push(recording::read(path, csv.as_ref())?);
+        reading.inc(1);
+    }
+    reading.finish_and_clear();
+
+    let fitting = bar(0, "fitting  [{bar:30}] order {pos}/{len} {msg}");
+    let started = Instant::now();
+    let model = build_material(&args.material, &recordings, &cfg, &mut |p| match p {
+        Progress::Measured { strikes, .. } => fitting.set_message(format!("{strikes} strikes")),
+        Progress::OrderTried {
+            order,
+            max_order,
+            lsd_db,
+            nrmse,
+            ..
+        } => {
+            fitting.set_length(*max_order as u64);
+            fitting.set_position(*order as u64);
+            fitting.set_message(format!("LSD {lsd_db:.2} dB, NRMSE {nrmse:.4}"));
+        }
+        _ => {}
+    })
+    .with_context(|| format!("fitting material {:?}", args.material))?;
+    let elapsed = started.elapsed().as_secs_f64();
+    fitting.finish_and_clear();
+
+    let replaced = library.upsert(model.clone()).is_some();
+    library.save(&args.out)?;
+    emit(&format!(
+        "{}: order {}, NRMSE {:.4}, LSD {:.2} dB, {} strikes, {:.1} s -> {} ({})\n",
+        model.name,
+        model.order,
+        model.fit.nrmse,
+        model.fit.lsd_db,
+        model.fit.strikes,
+        elapsed,
+        args.out.display(),
+        if replaced { "replaced" } else { "added" }
+    ))?;
+
+    // The library is saved by now; what follows is extra, and its errors say so.
+    let saved = || format!("(the material was saved to {})", args.out.display());
+    if let Some(path) = &args.report {
+        let report = FitReport {
+            materials: vec![FitReportEntry::of(&model)],
+        };
+        let mut json = serde_json::to_string_pretty(&report)?;
+        json.push('\n');
+        write_atomic(path, json.as_bytes()).with_context(saved)?;
+    }
+    if let Some(path) = &args.plot {
+        let title = format!(
+            "{}: order {}, NRMSE {:.4}, LSD {:.2} dB",
+            model.name, model.order, model.fit.nrmse, model.fit.lsd_db
+        );
+        let omitted = plot::draw_spectra(
+            path,
+            &[Panel {
+                title,
+                fit: &model.fit,
+            }],
+        )
+        .with_context(saved)?;
+        if omitted == Omitted::Text {
+            eprintln!(
+                "underfoot: warning: no font found, {} has no text (set UNDERFOOT_FONT to a .ttf file, or plot to .svg)",
+                path.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parsers_accept_good_and_reject_bad_values() {
+        assert_eq!(parse_band("20:900"), Ok(Band::new(20.0, 900.0)));
+        assert!(parse_band("900:20").is_err());
+        assert!(parse_band("20-900").is_err());
+        assert!(parse_band("0:10").is_err());
+        assert_eq!(parse_rate("2000"), Ok(SampleRate(2000)));
+        assert!(parse_rate("0").is_err() && parse_rate("2k").is_err());
+        assert_eq!(parse_order("8"), Ok(8));
+        assert!(parse_order("0").is_err());
+        assert!(parse_positive("nan").is_err() && parse_positive("-1").is_err());
+    }
+}

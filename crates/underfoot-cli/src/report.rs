@@ -1,0 +1,191 @@
+//! Text tables and JSON summaries of material models.
+//!
+//! # `--report` file format
+//!
+//! ```json
+//! { "materials": [ { "name": "gravel", "order": 8, "nrmse": 0.05, "lsd_db": 0.41,
+//!                    "fit_seconds": 3.2, "strikes": 12, "method": "...",
+//!                    "sources": [ { "file": "gravel-01.wav", "sha256": "..." } ] } ] }
+//! ```
+//!
+//! One entry per material fitted by the run that wrote it.
+
+use serde::Serialize;
+use underfoot::material::{MaterialModel, SourceFile};
+use underfoot::units::{Band, SampleRate};
+
+/// The `--report` file of a `fit` run.
+#[derive(Debug, Serialize)]
+pub struct FitReport<'a> {
+    /// The materials fitted.
+    pub materials: Vec<FitReportEntry<'a>>,
+}
+
+/// One fitted material in a [`FitReport`].
+#[derive(Debug, Serialize)]
+pub struct FitReportEntry<'a> {
+    pub name: &'a str,
+    pub order: usize,
+    pub nrmse: f64,
+    pub lsd_db: f64,
+    pub fit_seconds: f64,
+    pub strikes: usize,
+    pub method: &'a str,
+    pub sources: &'a [SourceFile],
+}
+
+impl<'a> FitReportEntry<'a> {
+    pub fn of(m: &'a MaterialModel) -> Self {
+        Self {
+            name: &m.name,
+            order: m.order,
+            nrmse: m.fit.nrmse,
+            lsd_db: m.fit.lsd_db,
+            fit_seconds: m.fit.fit_seconds,
+            strikes: m.fit.strikes,
+            method: &m.fit.method,
+            sources: &m.sources,
+        }
+    }
+}
+
+/// One row of `library list --json`.
+#[derive(Debug, Serialize)]
+pub struct ListEntry<'a> {
+    pub name: &'a str,
+    pub sample_rate: SampleRate,
+    pub band_hz: Band,
+    pub order: usize,
+    pub nrmse: f64,
+    pub lsd_db: f64,
+    pub strikes: usize,
+}
+
+impl<'a> ListEntry<'a> {
+    pub fn of(m: &'a MaterialModel) -> Self {
+        Self {
+            name: &m.name,
+            sample_rate: m.sample_rate,
+            band_hz: m.band_hz,
+            order: m.order,
+            nrmse: m.fit.nrmse,
+            lsd_db: m.fit.lsd_db,
+            strikes: m.fit.strikes,
+        }
+    }
+}
+
+/// How a column is aligned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Align {
+    Left,
+    Right,
+}
+
+/// A plain-text table: a header row, a rule, then the rows, columns two spaces apart.
+pub fn table(headers: &[(&str, Align)], rows: &[Vec<String>]) -> String {
+    let mut widths: Vec<usize> = headers.iter().map(|(h, _)| h.chars().count()).collect();
+    for row in rows {
+        for (w, cell) in widths.iter_mut().zip(row) {
+            *w = (*w).max(cell.chars().count());
+        }
+    }
+    let line = |cells: &mut dyn Iterator<Item = &str>| {
+        let mut s = cells
+            .zip(headers.iter().zip(&widths))
+            .map(|(c, ((_, align), &w))| match align {
+                Align::Left => format!("{c:<w$}"),
+                Align::Right => format!("{c:>w$}"),
+            })
+            .collect::<Vec<_>>()
+            .join("  ");
+        // Left-aligned last columns would otherwise leave trailing blanks.
+        s.truncate(s.trim_end().len());
+        s.push('\n');
+        s
+    };
+    let mut out = line(&mut headers.iter().map(|(h, _)| *h));
+    let rules: Vec<String> = widths.iter().map(|&w| "-".repeat(w)).collect();
+    out.push_str(&line(&mut rules.iter().map(String::as_str)));
+    for row in rows {
+        out.push_str(&line(&mut row.iter().map(String::as_str)));
+    }
+    out
+}
+
+/// The `library list` table: name, rate, band, order, NRMSE, LSD dB, strikes.
+pub fn list_table(models: &[MaterialModel]) -> String {
+    use Align::{Left, Right};
+    let rows: Vec<Vec<String>> = models
+        .iter()
+        .map(|m| {
+            vec![
+                m.name.clone(),
+                m.sample_rate.0.to_string(),
+                format!("{}-{}", m.band_hz.lo.0, m.band_hz.hi.0),
+                m.order.to_string(),
+                format!("{:.4}", m.fit.nrmse),
+                format!("{:.2}", m.fit.lsd_db),
+                m.fit.strikes.to_string(),
+            ]
+        })
+        .collect();
+    table(
+        &[
+            ("name", Left),
+            ("rate Hz", Right),
+            ("band Hz", Right),
+            ("order", Right),
+            ("NRMSE", Right),
+            ("LSD dB", Right),
+            ("strikes", Right),
+        ],
+        &rows,
+    )
+}
+
+/// The fit table of the paper's Table I, one row per material.
+pub fn fit_table(models: &[MaterialModel]) -> String {
+    use Align::{Left, Right};
+    let rows: Vec<Vec<String>> = models
+        .iter()
+        .map(|m| {
+            vec![
+                m.name.clone(),
+                m.order.to_string(),
+                format!("{:.4}", m.fit.nrmse),
+                format!("{:.2}", m.fit.lsd_db),
+            ]
+        })
+        .collect();
+    table(
+        &[
+            ("material", Left),
+            ("order", Right),
+            ("NRMSE", Right),
+            ("LSD dB", Right),
+        ],
+        &rows,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table_aligns_columns() {
+        let t = table(
+            &[("name", Align::Left), ("n", Align::Right)],
+            &[
+                vec!["gravel".into(), "8".into()],
+                vec!["ice".into(), "12".into()],
+            ],
+        );
+        let lines: Vec<&str> = t.lines().collect();
+        assert_eq!(
+            lines,
+            ["name     n", "------  --", "gravel   8", "ice     12"]
+        );
+    }
+}

@@ -1,0 +1,375 @@
+//! End-to-end tests of the `underfoot` binary on library files written by the tests.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use underfoot::material::{FilterCoefficients, FitRecord, Library, MaterialModel, SourceFile};
+use underfoot::signal::{Biquad, Sos};
+use underfoot::units::{Band, Hz, SampleRate};
+
+/// A valid model: one resonant section (poles at radius 0.9) whose fit record is its own
+/// response, so the library accepts it exactly as a fit would have written it.
+fn model(name: &str, strikes: usize) -> MaterialModel {
+    let rate = SampleRate(2000);
+    let band = Band::new(20.0, 900.0);
+    let sos = Sos::new(vec![Biquad {
+        b: [0.1, 0.0, -0.1],
+        a: [1.0, -1.6, 0.81],
+    }]);
+    let grid: Vec<f64> = band.log_grid(24).iter().map(|f| f.0).collect();
+    let mag: Vec<f64> = grid
+        .iter()
+        .map(|&f| sos.response(rate.omega(Hz(f))).norm())
+        .collect();
+    MaterialModel {
+        name: name.to_string(),
+        sample_rate: rate,
+        band_hz: band,
+        order: sos.order(),
+        filter: FilterCoefficients::from_sos(&sos),
+        fit: FitRecord {
+            grid_hz: grid,
+            measured: mag.iter().map(|m| m * 1.05).collect(),
+            model: mag,
+            nrmse: 0.0488,
+            lsd_db: 0.42,
+            method: "hand-built".to_string(),
+            strikes,
+            fit_seconds: 1.5,
+        },
+        sources: vec![SourceFile {
+            file: format!("{name}.wav"),
+            sha256: "0f".repeat(32),
+        }],
+    }
+}
+
+fn library(names: &[&str]) -> Library {
+    let mut lib = Library::new();
+    for (i, n) in names.iter().enumerate() {
+        lib.upsert(model(n, 10 + i));
+    }
+    lib
+}
+
+fn write_library(dir: &Path, names: &[&str]) -> PathBuf {
+    let path = dir.join("lib.json");
+    fs::write(&path, library(names).to_json()).expect("write library");
+    path
+}
+
+fn run(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_underfoot"))
+        .args(args)
+        // The fit plot looks for fonts; keep tests independent of the machine's fonts.
+        .env("UNDERFOOT_FONT", "")
+        .output()
+        .expect("run underfoot")
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn assert_ok(o: &Output) {
+    assert!(
+        o.status.success(),
+        "expected success, stderr: {}",
+        stderr(o)
+    );
+}
+
+/// Asserts a failure with status 1 (an error, not a usage mistake) and returns stderr.
+fn assert_error(o: &Output) -> String {
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "stdout: {}\nstderr: {}",
+        stdout(o),
+        stderr(o)
+    );
+    let e = stderr(o);
+    assert!(e.starts_with("underfoot: error: "), "{e}");
+    e
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 temp path")
+}
+
+#[test]
+fn list_prints_a_table_of_the_library() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let lib = write_library(dir.path(), &["gravel", "snow"]);
+    let o = run(&["library", "list", "--library", s(&lib)]);
+    assert_ok(&o);
+    let out = stdout(&o);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 4, "{out}");
+    for col in [
+        "name", "rate Hz", "band Hz", "order", "NRMSE", "LSD dB", "strikes",
+    ] {
+        assert!(lines[0].contains(col), "missing column {col}: {out}");
+    }
+    let gravel: Vec<&str> = lines[2].split_whitespace().collect();
+    assert_eq!(
+        gravel,
+        ["gravel", "2000", "20-900", "2", "0.0488", "0.42", "10"]
+    );
+    assert!(lines[3].starts_with("snow"));
+}
+
+#[test]
+fn list_and_show_json_parse() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let lib = write_library(dir.path(), &["gravel", "snow"]);
+
+    let o = run(&["library", "list", "--library", s(&lib), "--json"]);
+    assert_ok(&o);
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("list --json is JSON");
+    let rows = v.as_array().expect("array");
+    assert_eq!(rows.len(), 2);
+    assert_eq!(rows[1]["name"], "snow");
+    assert_eq!(rows[1]["order"], 2);
+    assert_eq!(rows[1]["strikes"], 11);
+    assert_eq!(rows[0]["band_hz"], serde_json::json!([20.0, 900.0]));
+
+    let o = run(&["library", "show", "snow", "--library", s(&lib), "--json"]);
+    assert_ok(&o);
+    let m: MaterialModel = serde_json::from_str(&stdout(&o)).expect("show --json is a model");
+    assert_eq!(m, model("snow", 11));
+}
+
+#[test]
+fn show_describes_fit_and_poles() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let lib = write_library(dir.path(), &["gravel"]);
+    let o = run(&["library", "show", "gravel", "--library", s(&lib)]);
+    assert_ok(&o);
+    let out = stdout(&o);
+    assert!(out.contains("NRMSE 0.0488, LSD 0.42 dB"), "{out}");
+    assert!(out.contains("gravel.wav"), "{out}");
+    // 1 - 1.6 z^-1 + 0.81 z^-2: radius 0.9 at acos(0.8/0.9) * 2000 / 2pi = 151.5 Hz.
+    assert!(out.contains("0.900000  151.5 Hz"), "{out}");
+}
+
+#[test]
+fn remove_deletes_and_saves() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let lib = write_library(dir.path(), &["gravel", "sand", "snow"]);
+    let o = run(&["library", "remove", "sand", "--library", s(&lib)]);
+    assert_ok(&o);
+    assert!(stdout(&o).contains("2 materials left"));
+    let after = Library::load(&lib).expect("still a valid library");
+    assert_eq!(after.names(), ["gravel", "snow"]);
+    let entries: Vec<_> = fs::read_dir(dir.path()).expect("dir").collect();
+    assert_eq!(entries.len(), 1, "no temporary files left behind");
+}
+
+#[test]
+fn remove_or_show_of_unknown_name_fails_cleanly() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let lib = write_library(dir.path(), &["gravel", "snow"]);
+    let before = fs::read(&lib).expect("read");
+    for cmd in ["remove", "show"] {
+        let e = assert_error(&run(&["library", cmd, "ice", "--library", s(&lib)]));
+        assert!(
+            e.contains(s(&lib)) && e.contains("\"ice\"") && e.contains("available: gravel, snow"),
+            "{e}"
+        );
+    }
+    assert_eq!(fs::read(&lib).expect("read"), before);
+}
+
+#[test]
+fn broken_libraries_fail_with_a_clear_message_and_stay_unchanged() {
+    let unstable = {
+        let mut lib = library(&["gravel", "ice"]);
+        // Poles at radius sqrt(1.0201) = 1.01, with b/a kept consistent so that only
+        // stability is wrong.
+        let sos = Sos::new(vec![Biquad {
+            b: [0.1, 0.0, -0.1],
+            a: [1.0, -1.6, 1.0201],
+        }]);
+        lib.materials[1].filter = FilterCoefficients::from_sos(&sos);
+        serde_json::to_string_pretty(&lib).expect("json")
+    };
+    let v2 = library(&["gravel"])
+        .to_json()
+        .replace("underfoot.library/1", "underfoot.library/2");
+    let cases: [(&str, String, &[&str]); 3] = [
+        (
+            "malformed",
+            "{\n  \"format\": \"underfoot.library/1\",\n  \"materials\": [\n".into(),
+            &["line", "column"],
+        ),
+        (
+            "unknown version",
+            v2,
+            &["\"underfoot.library/2\"", "underfoot.library/1"],
+        ),
+        ("unstable", unstable, &["\"ice\"", "unstable", "1.01"]),
+    ];
+    for (what, text, expected) in cases {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let lib = dir.path().join("lib.json");
+        fs::write(&lib, &text).expect("write");
+        for args in [
+            vec!["library", "list", "--library", s(&lib)],
+            vec!["library", "show", "gravel", "--library", s(&lib)],
+            vec!["library", "remove", "gravel", "--library", s(&lib)],
+            vec!["demo", "--library", s(&lib), "--out-dir", s(dir.path())],
+        ] {
+            let e = assert_error(&run(&args));
+            assert!(
+                e.contains(s(&lib)),
+                "{what}: {args:?}: error must name the file: {e}"
+            );
+            for word in expected {
+                assert!(
+                    e.contains(word),
+                    "{what}: {args:?}: expected {word:?} in {e}"
+                );
+            }
+            assert_eq!(
+                fs::read_to_string(&lib).expect("read"),
+                text,
+                "{what}: {args:?} changed the file"
+            );
+        }
+        let entries: Vec<_> = fs::read_dir(dir.path()).expect("dir").collect();
+        assert_eq!(entries.len(), 1, "{what}: nothing else written");
+    }
+}
+
+#[test]
+fn builtin_library_lists_and_flags_conflict() {
+    assert_ok(&run(&["library", "list"]));
+    let o = run(&["library", "list", "--builtin", "--json"]);
+    assert_ok(&o);
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("json");
+    assert!(v.is_array());
+    // Usage mistakes are clap's: status 2.
+    let o = run(&["library", "list", "--builtin", "--library", "x.json"]);
+    assert_eq!(o.status.code(), Some(2));
+    let o = run(&["library", "list", "--library", "/nonexistent/dir/lib.json"]);
+    assert!(assert_error(&o).contains("/nonexistent/dir/lib.json"));
+}
+
+#[test]
+fn demo_prints_fit_table_and_writes_spectra() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let lib = write_library(dir.path(), &["gravel", "concrete", "snow"]);
+    let out_dir = dir.path().join("out");
+    let o = run(&["demo", "--library", s(&lib), "--out-dir", s(&out_dir)]);
+    assert_ok(&o);
+    let out = stdout(&o);
+    let row: Vec<&str> = out
+        .lines()
+        .find(|l| l.starts_with("concrete"))
+        .expect("row")
+        .split_whitespace()
+        .collect();
+    assert_eq!(row, ["concrete", "2", "0.0488", "0.42"]);
+    let svg = fs::read_to_string(out_dir.join("spectra.svg")).expect("spectra.svg");
+    for name in ["gravel", "concrete", "snow"] {
+        assert!(
+            svg.contains(&format!(">\n{name}: order 2")),
+            "panel for {name}"
+        );
+    }
+    // Curves are the polylines with many points; axes, ticks and legend have two.
+    let curves = svg
+        .lines()
+        .filter(|l| l.starts_with("<polyline") && l.matches(',').count() >= 24);
+    assert_eq!(curves.count(), 6, "measured and model per panel");
+}
+
+/// A library file the `fit` tests expect to find unchanged.
+fn existing_library(dir: &Path) -> (PathBuf, Vec<u8>) {
+    let lib = write_library(dir, &["gravel"]);
+    let bytes = fs::read(&lib).expect("read");
+    (lib, bytes)
+}
+
+#[test]
+fn fit_of_missing_or_garbage_recording_fails_and_keeps_library() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (lib, before) = existing_library(dir.path());
+    let missing = dir.path().join("missing.wav");
+    let garbage = dir.path().join("garbage.wav");
+    fs::write(
+        &garbage,
+        b"RIFF\x10\x00\x00\x00WAVEthis is not audio at all",
+    )
+    .expect("write");
+    for file in [&missing, &garbage] {
+        let o = run(&["fit", "--material", "sand", "--out", s(&lib), s(file)]);
+        let e = assert_error(&o);
+        assert!(
+            e.contains(s(file)),
+            "error must name {}: {e}",
+            file.display()
+        );
+        assert_eq!(fs::read(&lib).expect("read"), before);
+    }
+    let entries: Vec<_> = fs::read_dir(dir.path()).expect("dir").collect();
+    assert_eq!(entries.len(), 2, "only the library and garbage.wav");
+}
+
+#[test]
+fn fit_checks_its_arguments_and_out_library_before_reading() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (lib, before) = existing_library(dir.path());
+    let missing = dir.path().join("missing.wav");
+
+    // A broken --out library fails before any recording is looked at.
+    let broken = dir.path().join("broken.json");
+    fs::write(&broken, "{ not json").expect("write");
+    let e = assert_error(&run(&[
+        "fit",
+        "--material",
+        "sand",
+        "--out",
+        s(&broken),
+        s(&missing),
+    ]));
+    assert!(e.contains(s(&broken)) && !e.contains("missing.wav"), "{e}");
+    assert_eq!(fs::read_to_string(&broken).expect("read"), "{ not json");
+
+    let bad_runs: [(&[&str], &str); 4] = [
+        (&["--material", "a b"], "--material"),
+        (&["--material", "sand", "--plot", "p.jpg"], ".svg or .png"),
+        (&["--material", "sand", "--rate", "1000"], "does not fit"),
+        (
+            &["--material", "sand", "--report", "/nonexistent/dir/r.json"],
+            "does not exist",
+        ),
+    ];
+    for (extra, expected) in bad_runs {
+        let mut args = vec!["fit", "--out", s(&lib)];
+        args.extend_from_slice(extra);
+        args.push(s(&missing));
+        let e = assert_error(&run(&args));
+        assert!(
+            e.contains(expected) && !e.contains("missing.wav"),
+            "{extra:?}: {e}"
+        );
+        assert_eq!(fs::read(&lib).expect("read"), before);
+    }
+    // Usage errors: conflicting options, and CSV options that need each other.
+    for extra in [
+        &["--order", "4", "--max-order", "8"][..],
+        &["--csv-column", "z"][..],
+    ] {
+        let mut args = vec!["fit", "--material", "sand", "--out", s(&lib)];
+        args.extend_from_slice(extra);
+        args.push(s(&missing));
+        assert_eq!(run(&args).status.code(), Some(2), "{extra:?}");
+    }
+}
