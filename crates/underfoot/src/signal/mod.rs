@@ -43,4 +43,24 @@ pub enum SignalError {
         /// The operation.
         what: &'static str,
     },
+    /// The input is longer than the operation can take.
+    #[error("input of {len} samples is too long: {what} takes at most {max}")]
+    TooLong {
+        /// Samples given.
+        len: usize,
+        /// Samples allowed.
+        max: usize,
+        /// The operation.
+        what: &'static str,
+    },
+    /// An output buffer has the wrong length.
+    #[error("output buffer of {len} values has the wrong length: {what} writes {expected}")]
+    WrongLength {
+        /// Length given.
+        len: usize,
+        /// Length needed.
+        expected: usize,
+        /// The operation.
+        what: &'static str,
+    },
 }
