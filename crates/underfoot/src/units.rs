@@ -110,7 +110,7 @@ pub struct Band {
 }
 
 impl Band {
-    /// A band from its edges in hertz. Validity is checked by [`Band::validate`].
+    /// A band from its edges in hertz. Validity is checked by [`Band::fits`].
     #[must_use]
     pub const fn new(lo: f64, hi: f64) -> Self {
         Self {
