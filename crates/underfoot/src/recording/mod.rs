@@ -1,7 +1,50 @@
 //! Recordings: decoding audio files and data-logger CSVs, and finding heel strikes in them.
+//!
+//! [`read`] turns a file into a [`Recording`]: mono `f64` samples at the file's own rate,
+//! with the file's name and SHA-256 so that a fitted model can say what it was learnt from.
+//!
+//! * WAV, FLAC and Ogg Vorbis are decoded by symphonia, the container chosen by probing the
+//!   content (the extension is only a hint); see [Decoding](self#decoding) below.
+//! * A file whose extension is `.csv` (any case) is read as a data-logger CSV, which needs a
+//!   [`CsvSpec`]: the column holding the signal and the logging rate. The spec is ignored
+//!   for audio files, so one spec can be passed for a whole folder.
+//!
+//! # Decoding
+//! Multi-channel audio is averaged to mono with equal weights. Integer PCM is scaled so
+//! that full scale is `[-1, 1)` (divided by `2^(bits-1)`); float PCM is kept as stored.
+//! Decoding is all-or-nothing: a damaged packet, a demuxer error, or fewer frames than
+//! the header promises is [`RecordingError::Corrupt`], never half a recording.
+//!
+//! # Checks
+//! Every recording, whatever its format, must then pass, in this order:
+//!
+//! 1. at least one sample ([`RecordingError::Empty`]);
+//! 2. every sample finite ([`RecordingError::NonFinite`], with the first bad index);
+//! 3. at least [`MIN_DURATION`] long ([`RecordingError::TooShort`]): shorter than a
+//!    strike's analysis window is useless and usually a mistake;
+//! 4. not silent ([`RecordingError::Silent`]): some sample differs from the first by more
+//!    than `SILENCE_TOLERANCE * max(1, |x[0]|)`. Relative to `max(1, |x[0]|)` rather than
+//!    to `|x[0]|` alone so that exact digital silence (all zeros), a DC offset (a CSV of a
+//!    sensor stuck at 512) and a float file of constant 0.25 are all caught by one rule,
+//!    while a real recording, whose noise floor is far above `1e-9` full scale, passes.
+//!
+//! Heel strikes are found in [`strikes`].
+mod csv;
+mod decode;
+mod error;
 pub mod strikes;
 
-use crate::units::SampleRate;
+pub use error::RecordingError;
+
+use crate::units::{SampleRate, Seconds};
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
+
+/// Recordings shorter than this are rejected as [`RecordingError::TooShort`].
+pub const MIN_DURATION: Seconds = Seconds(0.05);
+
+/// Relative tolerance of the silence check: see the [module docs](self#checks).
+pub const SILENCE_TOLERANCE: f64 = 1e-9;
 
 /// One recording, mixed to mono, at its own sample rate.
 #[derive(Debug, Clone, PartialEq)]
@@ -16,35 +59,195 @@ pub struct Recording {
     pub sha256: String,
 }
 
+impl Recording {
+    /// The length of the recording.
+    #[must_use]
+    pub fn duration(&self) -> Seconds {
+        self.rate.duration_of(self.samples.len())
+    }
+}
+
 /// How to read a CSV file: which column holds the signal, and at which rate it was logged.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct CsvSpec {
-    /// Column header name, or a 0-based index written as a number.
+    /// Column header name, or a 0-based index written as a number (used when the first
+    /// row has no field of that name, or the file has no header).
     pub column: String,
     /// The logging rate.
     pub rate: SampleRate,
 }
 
-/// What is wrong with a recording. Every variant names the file.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum RecordingError {
-    /// Placeholder until the decoder lands.
-    #[error("{path}: not implemented")]
-    Todo {
-        /// The file.
-        path: std::path::PathBuf,
-    },
-}
-
 /// Reads a recording: WAV, FLAC or Ogg Vorbis by content, or CSV (needs `csv`).
+///
+/// `name` in the result is the file name without directories.
 ///
 /// # Errors
 /// A [`RecordingError`] naming the file when it cannot be read, decoded, or is empty,
-/// silent, too short or holds non-finite samples.
-pub fn read(path: &std::path::Path, csv: Option<&CsvSpec>) -> Result<Recording, RecordingError> {
-    let _ = csv;
-    Err(RecordingError::Todo {
-        path: path.to_path_buf(),
+/// silent, too short or holds non-finite samples; see the [module docs](self#checks).
+pub fn read(path: &Path, csv: Option<&CsvSpec>) -> Result<Recording, RecordingError> {
+    let bytes = std::fs::read(path).map_err(|source| RecordingError::Io {
+        file: path.to_path_buf(),
+        source,
+    })?;
+    let name = path.file_name().map_or_else(
+        || path.to_string_lossy().into_owned(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    decode_and_check(path, name, &bytes, csv)
+}
+
+/// Reads a recording held in memory, as [`read`] does a file named `name`.
+///
+/// The extension of `name` decides whether it is a CSV, and hints the audio format.
+///
+/// # Errors
+/// As [`read`], with `name` as the file in every error.
+pub fn read_bytes(
+    name: &str,
+    bytes: &[u8],
+    csv: Option<&CsvSpec>,
+) -> Result<Recording, RecordingError> {
+    let file = PathBuf::from(name);
+    let short = file
+        .file_name()
+        .map_or_else(|| name.to_owned(), |n| n.to_string_lossy().into_owned());
+    decode_and_check(&file, short, bytes, csv)
+}
+
+fn decode_and_check(
+    file: &Path,
+    name: String,
+    bytes: &[u8],
+    csv: Option<&CsvSpec>,
+) -> Result<Recording, RecordingError> {
+    let is_csv = file
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+    let (rate, samples) = if is_csv {
+        let spec = csv.ok_or_else(|| RecordingError::CsvNeedsSpec {
+            file: file.to_path_buf(),
+        })?;
+        if spec.rate.0 == 0 {
+            return Err(RecordingError::InvalidRate {
+                file: file.to_path_buf(),
+                reason: "the CSV spec gives 0 Hz".into(),
+            });
+        }
+        (spec.rate, csv::read_column(file, bytes, spec)?)
+    } else {
+        decode::decode_audio(file, bytes)?
+    };
+    check(file, rate, &samples)?;
+    Ok(Recording {
+        name,
+        rate,
+        samples,
+        sha256: sha256_hex(bytes),
     })
+}
+
+/// The checks every recording must pass; see the [module docs](self#checks).
+fn check(file: &Path, rate: SampleRate, x: &[f64]) -> Result<(), RecordingError> {
+    let file = || file.to_path_buf();
+    let Some(&first) = x.first() else {
+        return Err(RecordingError::Empty { file: file() });
+    };
+    if let Some((index, &value)) = x.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(RecordingError::NonFinite {
+            file: file(),
+            index,
+            value,
+        });
+    }
+    let duration = rate.duration_of(x.len());
+    if duration.0 < MIN_DURATION.0 {
+        return Err(RecordingError::TooShort {
+            file: file(),
+            samples: x.len(),
+            rate: rate.0,
+            duration,
+            min: MIN_DURATION,
+        });
+    }
+    let tol = SILENCE_TOLERANCE * first.abs().max(1.0);
+    if x.iter().all(|v| (v - first).abs() <= tol) {
+        return Err(RecordingError::Silent {
+            file: file(),
+            first,
+        });
+    }
+    Ok(())
+}
+
+fn sha256_hex(bytes: &[u8]) -> String {
+    use std::fmt::Write;
+    let digest = Sha256::digest(bytes);
+    digest.iter().fold(String::with_capacity(64), |mut s, b| {
+        let _ = write!(s, "{b:02x}");
+        s
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sha256_of_known_strings() {
+        // FIPS 180-2 test vectors.
+        assert_eq!(
+            sha256_hex(b""),
+            "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855"
+        );
+        assert_eq!(
+            sha256_hex(b"abc"),
+            "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
+        );
+    }
+
+    #[test]
+    fn silence_rule_is_relative_to_max_one_first() {
+        let f = Path::new("x.csv");
+        let r = SampleRate(1000);
+        let mut x = vec![512.0; 100];
+        x[50] += 1e-7; // within 1e-9 * 512
+        assert!(matches!(
+            check(f, r, &x),
+            Err(RecordingError::Silent { .. })
+        ));
+        x[50] = 512.0 + 1e-6; // beyond 1e-9 * 512 = 5.12e-7
+        assert!(check(f, r, &x).is_ok());
+        let mut z = vec![0.0; 100];
+        z[3] = 5e-10;
+        assert!(matches!(
+            check(f, r, &z),
+            Err(RecordingError::Silent { .. })
+        ));
+        z[3] = 2e-9;
+        assert!(check(f, r, &z).is_ok());
+    }
+
+    #[test]
+    fn too_short_boundary_is_min_duration() {
+        let f = Path::new("x.csv");
+        let r = SampleRate(1000);
+        let x: Vec<f64> = (0..50).map(|i| f64::from(i % 2)).collect();
+        assert!(check(f, r, &x).is_ok(), "exactly 50 ms is long enough");
+        assert!(matches!(
+            check(f, r, &x[..49]),
+            Err(RecordingError::TooShort { samples: 49, .. })
+        ));
+    }
+
+    #[test]
+    fn first_non_finite_index_is_reported() {
+        let f = Path::new("x.csv");
+        let mut x: Vec<f64> = (0..100).map(|i| f64::from(i).sin()).collect();
+        x[70] = f64::NEG_INFINITY;
+        x[42] = f64::NAN;
+        assert!(matches!(
+            check(f, SampleRate(1000), &x),
+            Err(RecordingError::NonFinite { index: 42, .. })
+        ));
+    }
 }

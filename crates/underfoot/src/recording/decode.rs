@@ -1,0 +1,173 @@
+//! Decoding WAV, FLAC and Ogg Vorbis through symphonia, mixed down to mono.
+//!
+//! The container is chosen by probing the content; the file extension is only a hint, so a
+//! FLAC file named `.wav` still decodes, and garbage named `.wav` is reported as corrupt.
+//!
+//! Decoding is all-or-nothing. Symphonia's decoders allow skipping a bad packet and going
+//! on, which suits a media player but not a measurement: a hole in a recording shifts
+//! every later strike and smears its spectrum. So any demuxer or decoder error, a stream
+//! that ends before the frame count its header promises, or a change of sample rate or
+//! channel count part-way is reported as [`RecordingError::Corrupt`] (or
+//! [`RecordingError::InvalidRate`]) rather than returning what was decoded so far.
+//! A stream whose header carries no frame count (e.g. an Ogg file cut short, whose last
+//! complete page then looks like the end) cannot be told from a shorter recording and
+//! decodes cleanly to what is there.
+//!
+//! Samples are converted by symphonia to `f64`: integer PCM divided by `2^(bits-1)`, so
+//! full scale is `[-1, 1)`; float PCM passes unchanged (NaN included, which the caller
+//! rejects). Channels are averaged with equal weight, `m[n] = (1/C) sum_c x_c[n]`, which
+//! keeps a signal present identically on all channels at its level.
+
+use super::RecordingError;
+use crate::units::SampleRate;
+use std::io::Cursor;
+use std::path::Path;
+use symphonia::core::codecs::audio::AudioDecoderOptions;
+use symphonia::core::errors::Error as SymError;
+use symphonia::core::formats::probe::Hint;
+use symphonia::core::formats::{FormatOptions, TrackType};
+use symphonia::core::io::{MediaSourceStream, MediaSourceStreamOptions};
+use symphonia::core::meta::MetadataOptions;
+
+/// Decodes an audio file held in memory to mono samples and its sample rate.
+///
+/// `file` names the file in errors; its extension is passed to the probe as a hint.
+pub(crate) fn decode_audio(
+    file: &Path,
+    bytes: &[u8],
+) -> Result<(SampleRate, Vec<f64>), RecordingError> {
+    let corrupt = |reason: String| RecordingError::Corrupt {
+        file: file.to_path_buf(),
+        reason,
+    };
+
+    let mss = MediaSourceStream::new(
+        Box::new(Cursor::new(bytes)),
+        MediaSourceStreamOptions::default(),
+    );
+    let mut hint = Hint::new();
+    if let Some(ext) = file.extension().and_then(|e| e.to_str()) {
+        hint.with_extension(ext);
+    }
+    let mut format = symphonia::default::get_probe()
+        .probe(
+            &hint,
+            mss,
+            FormatOptions::default(),
+            MetadataOptions::default(),
+        )
+        .map_err(|e| match e {
+            // The Ogg reader looks for the last page while probing, so a cut file fails here.
+            SymError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+                corrupt("truncated: the file ends part-way through its data".into())
+            }
+            e => corrupt(format!("not a recognisable WAV, FLAC or Ogg file ({e})")),
+        })?;
+
+    let track = format
+        .default_track(TrackType::Audio)
+        .ok_or_else(|| corrupt("no audio track".into()))?;
+    let track_id = track.id;
+    let promised_frames = track.num_frames;
+    let params = track
+        .codec_params
+        .as_ref()
+        .and_then(|p| p.audio())
+        .ok_or_else(|| corrupt("the audio track has no codec parameters".into()))?
+        .clone();
+    let mut rate = params.sample_rate;
+    if rate == Some(0) {
+        return Err(invalid_rate(file, "the header says 0 Hz".into()));
+    }
+    let mut decoder = symphonia::default::get_codecs()
+        .make_audio_decoder(&params, &AudioDecoderOptions::default())
+        .map_err(|e| corrupt(format!("no decoder for this codec ({e})")))?;
+
+    let mut mono: Vec<f64> = Vec::new();
+    let mut channels: Option<usize> = None;
+    let mut interleaved: Vec<f64> = Vec::new();
+    let mut packet_index = 0usize;
+    loop {
+        let packet = match format.next_packet() {
+            Ok(Some(p)) => p,
+            Ok(None) => break,
+            Err(SymError::ResetRequired) => {
+                return Err(corrupt(
+                    "the stream changes its tracks part-way (chained stream), not supported".into(),
+                ));
+            }
+            Err(e) => {
+                return Err(corrupt(format!(
+                    "demuxing failed after {} frames, truncated or damaged ({e})",
+                    mono.len()
+                )));
+            }
+        };
+        if packet.track_id != track_id {
+            continue;
+        }
+        let buf = decoder
+            .decode(&packet)
+            .map_err(|e| corrupt(format!("packet {packet_index} could not be decoded ({e})")))?;
+        packet_index += 1;
+        if buf.frames() == 0 {
+            continue;
+        }
+        let spec = buf.spec();
+        match rate {
+            None => rate = Some(spec.rate()),
+            Some(r) if r != spec.rate() => {
+                return Err(invalid_rate(
+                    file,
+                    format!("changes from {r} Hz to {} Hz part-way", spec.rate()),
+                ));
+            }
+            Some(_) => {}
+        }
+        let c = spec.channels().count();
+        if c == 0 {
+            return Err(corrupt("a decoded packet has no channels".into()));
+        }
+        match channels {
+            None => channels = Some(c),
+            Some(prev) if prev != c => {
+                return Err(corrupt(format!(
+                    "channel count changes from {prev} to {c} part-way"
+                )));
+            }
+            Some(_) => {}
+        }
+        buf.copy_to_vec_interleaved(&mut interleaved);
+        let inv = 1.0 / c as f64;
+        mono.extend(
+            interleaved
+                .chunks_exact(c)
+                .map(|frame| frame.iter().sum::<f64>() * inv),
+        );
+    }
+
+    if let Some(n) = promised_frames.filter(|&n| (mono.len() as u64) < n) {
+        return Err(corrupt(format!(
+            "truncated: the header promises {n} frames but only {} could be decoded",
+            mono.len()
+        )));
+    }
+    if mono.is_empty() {
+        return Err(RecordingError::Empty {
+            file: file.to_path_buf(),
+        });
+    }
+    let rate = match rate {
+        Some(0) => return Err(invalid_rate(file, "the stream says 0 Hz".into())),
+        Some(r) => r,
+        None => return Err(invalid_rate(file, "the stream gives no sample rate".into())),
+    };
+    Ok((SampleRate(rate), mono))
+}
+
+fn invalid_rate(file: &Path, reason: String) -> RecordingError {
+    RecordingError::InvalidRate {
+        file: file.to_path_buf(),
+        reason,
+    }
+}
