@@ -11,18 +11,21 @@
 //!    [`vector_fit`](vector_fit::vector_fit): pole relocation in a partial-fraction basis,
 //!    which stays well conditioned for low resonances at high rates. Unstable poles of a
 //!    linear start are reflected into the unit circle.
-//! 2. **Refinements** ([`refine`](refine::refine)). The damped Gauss-Newton output-error
-//!    search of equation (2), over a parametrisation in which every step is a stable filter;
-//!    then the same search on the log-magnitude error, which is what the metrics measure.
+//! 2. **Refinements** ([`refine`](refine::refine)) of the start nearest the targets. The
+//!    damped Gauss-Newton output-error search of equation (2), over a parametrisation in
+//!    which every step is a stable filter; then the same search on both metrics at once
+//!    (linear and log magnitude errors, each scaled by its target), which is what the
+//!    metrics measure.
 //!
 //! All of it is evaluated on a log-spaced frequency grid of the band, so each octave counts
 //! the same (the weighting a perceptual fit needs; a linear grid spends most of its points
 //! on the top octave).
 //!
 //! **Order.** "Order" is the number of poles `N`, which equals the numerator degree. The
-//! automatic search tries `N = 1, 2, ...` up to a bound and keeps the lowest order whose
-//! log-spectral distance and NRMSE both reach their targets (defaults 0.5 dB, below the
-//! 1 dB intensity JND, and 0.1), or else the best order tried.
+//! automatic search (see [`fit`]) keeps the lowest order up to a bound whose log-spectral
+//! distance and NRMSE both reach their targets (defaults 0.5 dB, half the 1 dB intensity
+//! JND, and 0.1), or else the order closest to them. Candidates are ranked by
+//! `(LSD / target)^2 + (NRMSE / target)^2`.
 //!
 //! Every fit also records the plain Levi fit at the same order, so that a report can show
 //! what the refinements bought.
@@ -76,7 +79,7 @@ impl Default for FitConfig {
             order: OrderChoice::Auto { max: 16 },
             target_lsd: Decibels(0.5),
             target_nrmse: 0.1,
-            grid_points: 256,
+            grid_points: 128,
             max_iterations: 60,
         }
     }
@@ -134,17 +137,29 @@ pub struct FitOutcome {
     pub trials: Vec<(usize, Metrics, String)>,
 }
 
-/// Fits one order: every start, every refinement, the best by log-spectral distance.
+/// How far a fit is from its targets: `(LSD / target)^2 + (NRMSE / target)^2`.
+fn score(m: &Metrics, cfg: &FitConfig) -> f64 {
+    (m.lsd_db / cfg.target_lsd.0).powi(2) + (m.nrmse / cfg.target_nrmse).powi(2)
+}
+
+/// The balanced objective whose unit errors are the targets' (see [`Objective::Balanced`]).
+fn balanced(target: &Target, cfg: &FitConfig) -> Objective {
+    let mags: Vec<f64> = target.h.iter().map(|h| h.norm()).collect();
+    let mean = mags.iter().sum::<f64>() / mags.len() as f64;
+    let spread = (mags.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / mags.len() as f64).sqrt();
+    Objective::Balanced {
+        lin_scale: (cfg.target_nrmse * spread).max(1e-300),
+        log_scale: cfg.target_lsd.0 * std::f64::consts::LN_10 / 20.0,
+    }
+}
+
+/// Fits one order: the linear starts, then the refinements of the most promising start,
+/// keeping the candidate closest to the targets.
 ///
 /// # Errors
 /// [`FitError::InvalidOrder`] for order 0 or above [`MAX_ORDER`]; [`FitError::NoFit`] when
 /// no start yields a stable finite filter.
-pub fn fit_order(
-    target: &Target,
-    grid: &MetricGrid,
-    order: usize,
-    cfg: &FitConfig,
-) -> Result<OrderFit, FitError> {
+pub fn fit_order(target: &Target, grid: &MetricGrid, order: usize, cfg: &FitConfig) -> Result<OrderFit, FitError> {
     if order == 0 || order > MAX_ORDER {
         return Err(FitError::InvalidOrder { order });
     }
@@ -175,50 +190,49 @@ pub fn fit_order(
     if let Ok(s) = vector_fit::vector_fit(target, order, 10) {
         starts.push(("vector-fit", stabilise(&s)));
     }
+    let usable = |s: &Sos| s.is_stable() && s.sections.iter().all(|q| q.b.iter().chain(&q.a).all(|c| c.is_finite()));
+    starts.retain(|(_, s)| usable(s));
 
-    let mut best: Option<OrderFit> = None;
+    let objective = balanced(target, cfg);
+    let mut best: Option<(f64, OrderFit)> = None;
     let mut consider = |sos: &Sos, method: String| {
-        if !sos.is_stable()
-            || sos
-                .sections
-                .iter()
-                .any(|s| s.b.iter().any(|c| !c.is_finite()))
-        {
+        if !usable(sos) {
             return;
         }
         let m = grid.evaluate(sos);
-        if !(m.lsd_db.is_finite() && m.nrmse.is_finite()) {
-            return;
-        }
-        if best.as_ref().is_none_or(|b| m.lsd_db < b.metrics.lsd_db) {
-            best = Some(OrderFit {
-                order,
-                sos: sos.clone(),
-                metrics: m,
-                method,
-                levi: levi_metrics,
-            });
+        let sc = score(&m, cfg);
+        if sc.is_finite() && best.as_ref().is_none_or(|(b, _)| sc < *b) {
+            best = Some((sc, OrderFit { order, sos: sos.clone(), metrics: m, method, levi: levi_metrics }));
         }
     };
     for (name, start) in &starts {
         consider(start, (*name).to_string());
-        let Ok(oe) = refine::refine(start, target, Objective::OutputError, cfg.max_iterations)
-        else {
-            continue;
-        };
-        consider(&oe.sos, format!("{name} + gauss-newton(output-error)"));
-        if let Ok(lm) = refine::refine(&oe.sos, target, Objective::LogMagnitude, cfg.max_iterations)
-        {
-            consider(
-                &lm.sos,
-                format!("{name} + gauss-newton(output-error) + gauss-newton(log-magnitude)"),
-            );
-        }
     }
-    best.ok_or(FitError::NoFit { order })
+    // Refining is where the time goes, so only the start nearest the targets is refined:
+    // first for equation (2), then for both metrics.
+    let ranked = starts
+        .iter()
+        .map(|(name, s)| (refine::objective_cost(s, target, objective), *name, s))
+        .filter(|(c, _, _)| c.is_finite())
+        .min_by(|x, y| x.0.total_cmp(&y.0));
+    if let Some((_, name, start)) = ranked {
+        let oe = refine::refine(start, target, Objective::OutputError, cfg.max_iterations / 2)?;
+        consider(&oe.sos, format!("{name} + gauss-newton(output-error)"));
+        let both = refine::refine(&oe.sos, target, objective, cfg.max_iterations)?;
+        consider(&both.sos, format!("{name} + gauss-newton(output-error) + gauss-newton(balanced)"));
+        // The balanced search straight from the start, in case the output-error detour
+        // (which also fits the assumed phase) led away from the best magnitude fit.
+        let direct = refine::refine(start, target, objective, cfg.max_iterations)?;
+        consider(&direct.sos, format!("{name} + gauss-newton(balanced)"));
+    }
+    best.map(|(_, f)| f).ok_or(FitError::NoFit { order })
 }
 
 /// Fits `target`, choosing the order as `cfg` says; `progress` sees each order tried.
+///
+/// The automatic search steps through even orders (each adds one resonance) until one
+/// reaches both targets, then tries the odd order just below it, so that the order kept is
+/// the lowest that reaches them. If none does, the order closest to the targets is kept.
 ///
 /// # Errors
 /// As [`fit_order`]; the automatic search fails only if every order fails.
@@ -228,43 +242,57 @@ pub fn fit(
     cfg: &FitConfig,
     progress: &mut dyn FnMut(&OrderFit),
 ) -> Result<FitOutcome, FitError> {
-    let orders: Vec<usize> = match cfg.order {
-        OrderChoice::Fixed(n) => vec![n],
-        OrderChoice::Auto { max } => {
-            if max == 0 || max > MAX_ORDER {
-                return Err(FitError::InvalidOrder { order: max });
-            }
-            (1..=max).collect()
+    let reached = |f: &OrderFit| f.metrics.lsd_db <= cfg.target_lsd.0 && f.metrics.nrmse <= cfg.target_nrmse;
+    let mut trials = Vec::new();
+    let mut last_err = None;
+    let mut run = |order: usize, trials: &mut Vec<(usize, Metrics, String)>| match fit_order(target, grid, order, cfg) {
+        Ok(f) => {
+            progress(&f);
+            trials.push((order, f.metrics, f.method.clone()));
+            Some(f)
+        }
+        Err(e) => {
+            last_err = Some(e);
+            None
         }
     };
-    let mut trials = Vec::new();
-    let mut best: Option<OrderFit> = None;
-    let mut last_err = None;
-    for order in orders {
-        let f = match fit_order(target, grid, order, cfg) {
-            Ok(f) => f,
-            Err(e) => {
-                last_err = Some(e);
-                continue;
-            }
-        };
-        progress(&f);
-        trials.push((order, f.metrics, f.method.clone()));
-        let reached = f.metrics.lsd_db <= cfg.target_lsd.0 && f.metrics.nrmse <= cfg.target_nrmse;
-        if best
-            .as_ref()
-            .is_none_or(|b| f.metrics.lsd_db < b.metrics.lsd_db)
-            || reached
-        {
-            best = Some(f);
+    let max = match cfg.order {
+        OrderChoice::Fixed(n) => {
+            return match run(n, &mut trials) {
+                Some(best) => Ok(FitOutcome { best, trials }),
+                None => Err(last_err.unwrap_or(FitError::NoFit { order: n })),
+            };
         }
-        if reached {
+        OrderChoice::Auto { max } if max == 0 || max > MAX_ORDER => {
+            return Err(FitError::InvalidOrder { order: max });
+        }
+        OrderChoice::Auto { max } => max,
+    };
+    let mut best: Option<OrderFit> = None;
+    let mut order = 2.min(max);
+    loop {
+        if let Some(f) = run(order, &mut trials) {
+            if reached(&f) {
+                let mut chosen = f;
+                if order % 2 == 0 && order > 1 {
+                    if let Some(lower) = run(order - 1, &mut trials).filter(|l| reached(l)) {
+                        chosen = lower;
+                    }
+                }
+                return Ok(FitOutcome { best: chosen, trials });
+            }
+            if best.as_ref().is_none_or(|b| score(&f.metrics, cfg) < score(&b.metrics, cfg)) {
+                best = Some(f);
+            }
+        }
+        if order >= max {
             break;
         }
+        order = (order + 2).min(max);
     }
     match best {
         Some(best) => Ok(FitOutcome { best, trials }),
-        None => Err(last_err.unwrap_or(FitError::NoFit { order: 0 })),
+        None => Err(last_err.unwrap_or(FitError::NoFit { order: max })),
     }
 }
 

@@ -31,7 +31,11 @@
 //! * [`Objective::LogMagnitude`]: `sum_k w_k (ln|H(w_k)| - ln|h_k|)^2`, the log-spectral
 //!   distance itself. It ignores phase, which for a magnitude-only measurement was only an
 //!   assumption (minimum phase), and so leaves the zeros free to sit where the magnitude
-//!   fits best.
+//!   fits best;
+//! * [`Objective::Balanced`]: both metrics of [`super::metrics`] at once, each residual
+//!   divided by the error its target allows, `(|H| - |h|) / s_lin` and
+//!   `ln(|H| / |h|) / s_log`: the log error keeps quiet bands honest, the linear error
+//!   (what NRMSE measures) keeps the peaks, and neither is traded away for the other.
 //!
 //! The damping is Levenberg-Marquardt's: `(J^T J + lambda diag(J^T J)) delta = -J^T r`,
 //! `lambda` shrinking after a step that lowers the cost and growing after one that does not,
@@ -60,12 +64,20 @@ fn to_k(u: f64) -> (f64, f64) {
 }
 
 /// What the refinement minimises.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Objective {
     /// Relative complex output error, equation (2).
     OutputError,
     /// Squared log-magnitude error.
     LogMagnitude,
+    /// Both metrics at once: per frequency, the magnitude error over `lin_scale` and the
+    /// natural-log magnitude error over `log_scale`.
+    Balanced {
+        /// Magnitude error that counts as one unit.
+        lin_scale: f64,
+        /// Log-magnitude error (nepers) that counts as one unit.
+        log_scale: f64,
+    },
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -168,84 +180,99 @@ impl Layout {
     }
 }
 
-/// Residuals, and optionally the Jacobian (row-major, `rows x params`).
+/// Residual rows per frequency.
+fn rows_per(objective: Objective) -> usize {
+    match objective {
+        Objective::LogMagnitude => 1,
+        Objective::OutputError | Objective::Balanced { .. } => 2,
+    }
+}
+
+/// Residuals, and optionally the Jacobian (`rows x params`).
 fn evaluate(
     layout: &Layout,
     p: &[f64],
     target: &Target,
     objective: Objective,
-    jac: Option<&mut Vec<f64>>,
+    mut jac: Option<&mut DMatrix<f64>>,
 ) -> Vec<f64> {
     let sections = layout.unpack(p);
     let np = layout.len();
-    let rows_per = match objective {
-        Objective::OutputError => 2,
-        Objective::LogMagnitude => 1,
-    };
-    let mut r = Vec::with_capacity(rows_per * target.len());
-    let mut jac = jac;
+    let per = rows_per(objective);
+    let mut r = Vec::with_capacity(per * target.len());
     if let Some(j) = jac.as_deref_mut() {
-        j.clear();
-        j.resize(rows_per * target.len() * np, 0.0);
+        if j.shape() != (per * target.len(), np) {
+            *j = DMatrix::zeros(per * target.len(), np);
+        }
     }
     let mut dlog = vec![Complex64::new(0.0, 0.0); np];
+    let one = Complex64::new(1.0, 0.0);
     for k in 0..target.len() {
         let z1 = Complex64::from_polar(1.0, -target.omega[k]);
         let z2 = z1 * z1;
         let h = target.h[k];
-        let mut log_h = Complex64::new(0.0, 0.0);
+        let mut hm = one;
         let mut col = 0;
         for ((s, d), &nb) in sections.iter().zip(&layout.dens).zip(&layout.nums) {
             let bz = s.b[0] + s.b[1] * z1 + s.b[2] * z2;
             let az = s.a[0] + s.a[1] * z1 + s.a[2] * z2;
             // A zero exactly on the grid would make ln|B| infinite; nudge it.
-            let bz = if bz.norm() < 1e-300 {
-                Complex64::new(1e-300, 0.0)
-            } else {
-                bz
-            };
-            log_h += bz.ln() - az.ln();
-            let powers = [Complex64::new(1.0, 0.0), z1, z2];
+            let bz = if bz.norm_sqr() < 1e-300 { Complex64::new(1e-150, 0.0) } else { bz };
+            hm *= bz / az;
+            let (ib, ia) = (bz.inv(), az.inv());
+            let powers = [one, z1, z2];
             for (j, zp) in powers.iter().take(nb).enumerate() {
-                dlog[col + j] = zp / bz;
+                dlog[col + j] = zp * ib;
             }
             col += nb;
             match d {
                 Den::Two => {
                     let ((k1, dk1), (k2, dk2)) = (to_k(p[col]), to_k(p[col + 1]));
-                    let (da1, da2) = (-z1 / az, -z2 / az);
+                    let (da1, da2) = (-z1 * ia, -z2 * ia);
                     dlog[col] = da1 * dk1 * (1.0 + k2);
                     dlog[col + 1] = da1 * k1 * dk2 + da2 * dk2;
                     col += 2;
                 }
                 Den::One => {
-                    dlog[col] = -z1 / az * to_k(p[col]).1;
+                    dlog[col] = -z1 * ia * to_k(p[col]).1;
                     col += 1;
                 }
                 Den::None => {}
             }
         }
+        let w = target.weight[k].sqrt();
         match objective {
             Objective::OutputError => {
-                let w = (target.weight[k] / h.norm_sqr().max(1e-300)).sqrt();
-                let hm = log_h.exp();
+                let w = w / h.norm().max(1e-300);
                 let e = (hm - h) * w;
                 r.push(e.re);
                 r.push(e.im);
                 if let Some(j) = jac.as_deref_mut() {
                     for (c, dl) in dlog.iter().enumerate() {
                         let v = hm * dl * w;
-                        j[(2 * k) * np + c] = v.re;
-                        j[(2 * k + 1) * np + c] = v.im;
+                        j[(2 * k, c)] = v.re;
+                        j[(2 * k + 1, c)] = v.im;
                     }
                 }
             }
             Objective::LogMagnitude => {
-                let w = target.weight[k].sqrt();
-                r.push(w * (log_h.re - h.norm().max(1e-300).ln()));
+                let mag = hm.norm().max(1e-300);
+                r.push(w * (mag / h.norm().max(1e-300)).ln());
                 if let Some(j) = jac.as_deref_mut() {
                     for (c, dl) in dlog.iter().enumerate() {
-                        j[k * np + c] = w * dl.re;
+                        j[(k, c)] = w * dl.re;
+                    }
+                }
+            }
+            Objective::Balanced { lin_scale, log_scale } => {
+                let (mag, want) = (hm.norm().max(1e-300), h.norm().max(1e-300));
+                let (wl, wg) = (w / lin_scale, w / log_scale);
+                r.push(wl * (mag - want));
+                r.push(wg * (mag / want).ln());
+                if let Some(j) = jac.as_deref_mut() {
+                    for (c, dl) in dlog.iter().enumerate() {
+                        j[(2 * k, c)] = wl * mag * dl.re;
+                        j[(2 * k + 1, c)] = wg * dl.re;
                     }
                 }
             }
@@ -288,29 +315,14 @@ pub fn refine(
     let layout = Layout::of(sos);
     let np = layout.len();
     let mut p = layout.pack(sos);
-    let mut jac = Vec::new();
+    let mut jac = DMatrix::<f64>::zeros(0, 0);
     let mut r = evaluate(&layout, &p, target, objective, Some(&mut jac));
     let mut c = cost(&r);
     let mut lambda = 1e-3;
     let mut steps = 0;
-    let rows = r.len();
     'outer: for _ in 0..max_iter {
-        let mut jtj = DMatrix::<f64>::zeros(np, np);
-        let mut g = DVector::<f64>::zeros(np);
-        for row in 0..rows {
-            let jr = &jac[row * np..(row + 1) * np];
-            for a in 0..np {
-                g[a] += jr[a] * r[row];
-                for b in a..np {
-                    jtj[(a, b)] += jr[a] * jr[b];
-                }
-            }
-        }
-        for a in 0..np {
-            for b in 0..a {
-                jtj[(a, b)] = jtj[(b, a)];
-            }
-        }
+        let jtj = jac.tr_mul(&jac);
+        let g = jac.tr_mul(&DVector::from_column_slice(&r));
         let diag: Vec<f64> = (0..np)
             .map(|a| jtj[(a, a)].max(1e-12 * (1.0 + jtj[(a, a)])))
             .collect();
@@ -404,10 +416,14 @@ mod tests {
             },
         ]);
         let t = target_of(&other, rate, &freqs);
-        for obj in [Objective::OutputError, Objective::LogMagnitude] {
-            let layout = Layout::of(sos);
+        for obj in [
+            Objective::OutputError,
+            Objective::LogMagnitude,
+            Objective::Balanced { lin_scale: 0.3, log_scale: 0.05 },
+        ] {
+            let layout = Layout::of(&sos);
             let p = layout.pack(&sos);
-            let mut jac = Vec::new();
+            let mut jac = DMatrix::zeros(0, 0);
             let r0 = evaluate(&layout, &p, &t, obj, Some(&mut jac));
             let np = layout.len();
             for c in 0..np {
@@ -417,7 +433,7 @@ mod tests {
                 let r1 = evaluate(&layout, &q, &t, obj, None);
                 for row in 0..r0.len() {
                     let fd = (r1[row] - r0[row]) / h;
-                    let an = jac[row * np + c];
+                    let an = jac[(row, c)];
                     assert!(
                         (fd - an).abs() < 1e-4 * (1.0 + an.abs()),
                         "{obj:?} col {c} row {row}: {fd} vs {an}"
