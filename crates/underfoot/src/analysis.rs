@@ -26,11 +26,11 @@
 //!    vibrotactile frequency JND, so no detail a person could feel is lost).
 
 use crate::fit::target::interpolate_bins;
-use crate::recording::strikes::{find_onsets, OnsetConfig};
 use crate::recording::Recording;
+use crate::recording::strikes::{OnsetConfig, find_onsets};
 use crate::signal::savgol::SavitzkyGolay;
-use crate::signal::spectrum::{fractional_octave_smooth, SpectrumPlan};
-use crate::signal::{butterworth, filtfilt::filtfilt, resample::Resampler, SignalError, Sos};
+use crate::signal::spectrum::{SpectrumPlan, fractional_octave_smooth};
+use crate::signal::{SignalError, Sos, butterworth, filtfilt::filtfilt, resample::Resampler};
 use crate::units::{Band, Decibels, Hz, SampleRate, Seconds};
 
 /// How recordings are turned into a measured response.
@@ -108,13 +108,17 @@ pub enum AnalysisError {
         source: SignalError,
     },
     /// No heel strike was found in any recording.
-    #[error("no heel strike found in {files:?}: are these recordings of footsteps, and louder than their noise?")]
+    #[error(
+        "no heel strike found in {files:?}: are these recordings of footsteps, and louder than their noise?"
+    )]
     NoStrikes {
         /// The recordings searched.
         files: Vec<String>,
     },
     /// The averaged spectrum is zero somewhere in the band, so it has no level to fit there.
-    #[error("the measured response is zero at {at} inside the band {band}: the strikes hold no energy there")]
+    #[error(
+        "the measured response is zero at {at} inside the band {band}: the strikes hold no energy there"
+    )]
     EmptyBand {
         /// Where.
         at: Hz,
@@ -167,19 +171,36 @@ impl AnalysisConfig {
     fn validate(&self) -> Result<(), AnalysisError> {
         let bad = |m: String| Err(AnalysisError::InvalidConfig(m));
         if !self.band.fits(self.rate) {
-            return bad(format!("band {} must lie inside (0, {}) at rate {}", self.band, self.rate.nyquist(), self.rate));
+            return bad(format!(
+                "band {} must lie inside (0, {}) at rate {}",
+                self.band,
+                self.rate.nyquist(),
+                self.rate
+            ));
         }
         if !(self.strike_length.0 > 0.0 && self.strike_length.0 <= 60.0) {
-            return bad(format!("strike length {} must be in (0, 60] s", self.strike_length));
+            return bad(format!(
+                "strike length {} must be in (0, 60] s",
+                self.strike_length
+            ));
         }
         if !(self.pre_onset.0 >= 0.0 && self.pre_onset.0 < self.strike_length.0) {
-            return bad(format!("pre-onset {} must be in [0, strike length)", self.pre_onset));
+            return bad(format!(
+                "pre-onset {} must be in [0, strike length)",
+                self.pre_onset
+            ));
         }
         if !(self.smoothing_fraction.is_finite() && self.smoothing_fraction > 0.0) {
-            return bad(format!("smoothing fraction 1/{} must be positive", self.smoothing_fraction));
+            return bad(format!(
+                "smoothing fraction 1/{} must be positive",
+                self.smoothing_fraction
+            ));
         }
         if self.bandpass_order == 0 || self.bandpass_order > 20 {
-            return bad(format!("band-pass order {} must be in 1..=20", self.bandpass_order));
+            return bad(format!(
+                "band-pass order {} must be in 1..=20",
+                self.bandpass_order
+            ));
         }
         if self.rate.0 < 100 {
             return bad(format!("analysis rate {} is below 100 Hz", self.rate));
@@ -205,25 +226,38 @@ impl AnalysisConfig {
 /// [`AnalysisError::Conditioning`] when a step cannot run on this recording (too short).
 pub fn condition(rec: &Recording, cfg: &AnalysisConfig) -> Result<Vec<f64>, AnalysisError> {
     cfg.validate()?;
-    let trend = cfg.trend_filter().map_err(|source| AnalysisError::InvalidConfig(source.to_string()))?;
+    let trend = cfg
+        .trend_filter()
+        .map_err(|source| AnalysisError::InvalidConfig(source.to_string()))?;
     condition_with(rec, cfg, &trend)
 }
 
-fn condition_with(rec: &Recording, cfg: &AnalysisConfig, trend: &Sos) -> Result<Vec<f64>, AnalysisError> {
-    let wrap = |source| AnalysisError::Conditioning { name: rec.name.clone(), source };
+fn condition_with(
+    rec: &Recording,
+    cfg: &AnalysisConfig,
+    trend: &Sos,
+) -> Result<Vec<f64>, AnalysisError> {
+    let wrap = |source| AnalysisError::Conditioning {
+        name: rec.name.clone(),
+        source,
+    };
     let smoother = match cfg.savgol {
         SavgolSetting::Auto { polyorder } => {
             SavitzkyGolay::widest_within(rec.rate, cfg.band.hi, Decibels(0.1), polyorder, 257)
                 .filter(|sg| sg.window() <= rec.samples.len())
         }
-        SavgolSetting::Fixed { window, polyorder } => Some(SavitzkyGolay::new(window, polyorder).map_err(wrap)?),
+        SavgolSetting::Fixed { window, polyorder } => {
+            Some(SavitzkyGolay::new(window, polyorder).map_err(wrap)?)
+        }
         SavgolSetting::Off => None,
     };
     let smoothed = match &smoother {
         Some(sg) => sg.apply(&rec.samples).map_err(wrap)?,
         None => rec.samples.clone(),
     };
-    let resampled = Resampler::new(rec.rate, cfg.rate).map_err(wrap)?.process(&smoothed);
+    let resampled = Resampler::new(rec.rate, cfg.rate)
+        .map_err(wrap)?
+        .process(&smoothed);
     filtfilt(trend, &resampled).map_err(wrap)
 }
 
@@ -232,12 +266,17 @@ fn condition_with(rec: &Recording, cfg: &AnalysisConfig, trend: &Sos) -> Result<
 /// # Errors
 /// [`AnalysisError`] when the settings are invalid, a recording cannot be conditioned, no
 /// strike is found anywhere, or the average has no energy somewhere in the band.
-pub fn measure(recordings: &[Recording], cfg: &AnalysisConfig) -> Result<MeasuredResponse, AnalysisError> {
+pub fn measure(
+    recordings: &[Recording],
+    cfg: &AnalysisConfig,
+) -> Result<MeasuredResponse, AnalysisError> {
     cfg.validate()?;
     if recordings.is_empty() {
         return Err(AnalysisError::NoRecordings);
     }
-    let trend = cfg.trend_filter().map_err(|source| AnalysisError::InvalidConfig(source.to_string()))?;
+    let trend = cfg
+        .trend_filter()
+        .map_err(|source| AnalysisError::InvalidConfig(source.to_string()))?;
     let strike_len = cfg.rate.samples_in(cfg.strike_length).max(8);
     let pre = cfg.rate.samples_in(cfg.pre_onset);
     let n_fft = (4 * strike_len).next_power_of_two();
@@ -250,33 +289,54 @@ pub fn measure(recordings: &[Recording], cfg: &AnalysisConfig) -> Result<Measure
         let onsets = find_onsets(&x, cfg.rate, &cfg.onsets);
         for (i, &onset) in onsets.iter().enumerate() {
             let start = onset.saturating_sub(pre);
-            let next = onsets.get(i + 1).map_or(x.len(), |&n| n.saturating_sub(pre).max(start + 1));
+            let next = onsets
+                .get(i + 1)
+                .map_or(x.len(), |&n| n.saturating_sub(pre).max(start + 1));
             let end = (start + strike_len).min(next).min(x.len());
             if end <= start {
                 continue;
             }
-            plan.magnitude(&x[start..end], &mut mag).map_err(|source| AnalysisError::Conditioning {
-                name: rec.name.clone(),
-                source,
+            plan.magnitude(&x[start..end], &mut mag).map_err(|source| {
+                AnalysisError::Conditioning {
+                    name: rec.name.clone(),
+                    source,
+                }
             })?;
             for (p, m) in power.iter_mut().zip(&mag) {
                 *p += m * m;
             }
-            strikes.push(StrikeSource { recording: index, onset: cfg.rate.duration_of(onset) });
+            strikes.push(StrikeSource {
+                recording: index,
+                onset: cfg.rate.duration_of(onset),
+            });
         }
     }
     if strikes.is_empty() {
-        return Err(AnalysisError::NoStrikes { files: recordings.iter().map(|r| r.name.clone()).collect() });
+        return Err(AnalysisError::NoStrikes {
+            files: recordings.iter().map(|r| r.name.clone()).collect(),
+        });
     }
     let n = strikes.len() as f64;
     let raw: Vec<f64> = power.iter().map(|p| (p / n).sqrt()).collect();
     let bin_hz = cfg.rate.hz() / n_fft as f64;
     let magnitude = fractional_octave_smooth(&raw, bin_hz, cfg.smoothing_fraction);
-    let response = MeasuredResponse { rate: cfg.rate, band: cfg.band, bin_hz, magnitude, raw, strikes };
+    let response = MeasuredResponse {
+        rate: cfg.rate,
+        band: cfg.band,
+        bin_hz,
+        magnitude,
+        raw,
+        strikes,
+    };
     let lo_bin = (cfg.band.lo.0 / bin_hz).floor() as usize;
     let hi_bin = ((cfg.band.hi.0 / bin_hz).ceil() as usize).min(response.magnitude.len() - 1);
-    if let Some(k) = (lo_bin..=hi_bin).find(|&k| !(response.magnitude[k] > 0.0 && response.magnitude[k].is_finite())) {
-        return Err(AnalysisError::EmptyBand { at: Hz(k as f64 * bin_hz), band: cfg.band });
+    if let Some(k) = (lo_bin..=hi_bin)
+        .find(|&k| !(response.magnitude[k] > 0.0 && response.magnitude[k].is_finite()))
+    {
+        return Err(AnalysisError::EmptyBand {
+            at: Hz(k as f64 * bin_hz),
+            band: cfg.band,
+        });
     }
     Ok(response)
 }

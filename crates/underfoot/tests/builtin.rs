@@ -6,7 +6,7 @@
 
 mod common;
 
-use underfoot::material::build::{build_material, BuildConfig};
+use underfoot::material::build::{BuildConfig, build_material};
 use underfoot::material::builtin::builtin;
 use underfoot::recording::read;
 
@@ -22,21 +22,43 @@ fn builtin_library_covers_the_papers_materials() {
 
 #[test]
 fn builtin_library_is_current() {
-    let Some(root) = common::footsteps_dir() else { return };
+    let Some(root) = common::footsteps_dir() else {
+        return;
+    };
     for preset in &builtin().materials {
         let recs: Vec<_> = preset
             .sources
             .iter()
-            .map(|s| read(&root.join(&preset.name).join(&s.file), None).unwrap_or_else(|e| panic!("{e}")))
+            .map(|s| {
+                read(&root.join(&preset.name).join(&s.file), None).unwrap_or_else(|e| panic!("{e}"))
+            })
             .collect();
         for (rec, src) in recs.iter().zip(&preset.sources) {
-            assert_eq!(rec.sha256, src.sha256, "{}: {} changed since the presets were fitted", preset.name, src.file);
+            assert_eq!(
+                rec.sha256, src.sha256,
+                "{}: {} changed since the presets were fitted",
+                preset.name, src.file
+            );
         }
-        let refit = build_material(&preset.name, &recs, &BuildConfig::default(), &mut |_| {}).unwrap();
-        assert_eq!(refit.order, preset.order, "{}: run scripts/refit-builtin", preset.name);
-        for (f, (a, b)) in preset.fit.grid_hz.iter().zip(refit.fit.model.iter().zip(&preset.fit.model)) {
+        let refit =
+            build_material(&preset.name, &recs, &BuildConfig::default(), &mut |_| {}).unwrap();
+        assert_eq!(
+            refit.order, preset.order,
+            "{}: run scripts/refit-builtin",
+            preset.name
+        );
+        for (f, (a, b)) in preset
+            .fit
+            .grid_hz
+            .iter()
+            .zip(refit.fit.model.iter().zip(&preset.fit.model))
+        {
             let db = 20.0 * (a / b).log10();
-            assert!(db.abs() < 0.1, "{} at {f} Hz: refit differs by {db} dB; run scripts/refit-builtin", preset.name);
+            assert!(
+                db.abs() < 0.1,
+                "{} at {f} Hz: refit differs by {db} dB; run scripts/refit-builtin",
+                preset.name
+            );
         }
     }
 }

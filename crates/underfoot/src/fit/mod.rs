@@ -159,7 +159,12 @@ fn balanced(target: &Target, cfg: &FitConfig) -> Objective {
 /// # Errors
 /// [`FitError::InvalidOrder`] for order 0 or above [`MAX_ORDER`]; [`FitError::NoFit`] when
 /// no start yields a stable finite filter.
-pub fn fit_order(target: &Target, grid: &MetricGrid, order: usize, cfg: &FitConfig) -> Result<OrderFit, FitError> {
+pub fn fit_order(
+    target: &Target,
+    grid: &MetricGrid,
+    order: usize,
+    cfg: &FitConfig,
+) -> Result<OrderFit, FitError> {
     if order == 0 || order > MAX_ORDER {
         return Err(FitError::InvalidOrder { order });
     }
@@ -182,15 +187,20 @@ pub fn fit_order(target: &Target, grid: &MetricGrid, order: usize, cfg: &FitConf
             starts.push(("levi", stabilise(&s)));
         }
     }
-    if let Ok((b, a)) = levi::sanathanan_koerner(target, order, order, 5) {
+    if let Ok((b, a)) = levi::sanathanan_koerner(target, order, order, 3) {
         if let Some(s) = roots::ba_to_sos(&b, &a) {
             starts.push(("sanathanan-koerner", stabilise(&s)));
         }
     }
-    if let Ok(s) = vector_fit::vector_fit(target, order, 10) {
+    if let Ok(s) = vector_fit::vector_fit(target, order, 6) {
         starts.push(("vector-fit", stabilise(&s)));
     }
-    let usable = |s: &Sos| s.is_stable() && s.sections.iter().all(|q| q.b.iter().chain(&q.a).all(|c| c.is_finite()));
+    let usable = |s: &Sos| {
+        s.is_stable()
+            && s.sections
+                .iter()
+                .all(|q| q.b.iter().chain(&q.a).all(|c| c.is_finite()))
+    };
     starts.retain(|(_, s)| usable(s));
 
     let objective = balanced(target, cfg);
@@ -202,37 +212,77 @@ pub fn fit_order(target: &Target, grid: &MetricGrid, order: usize, cfg: &FitConf
         let m = grid.evaluate(sos);
         let sc = score(&m, cfg);
         if sc.is_finite() && best.as_ref().is_none_or(|(b, _)| sc < *b) {
-            best = Some((sc, OrderFit { order, sos: sos.clone(), metrics: m, method, levi: levi_metrics }));
+            best = Some((
+                sc,
+                OrderFit {
+                    order,
+                    sos: sos.clone(),
+                    metrics: m,
+                    method,
+                    levi: levi_metrics,
+                },
+            ));
         }
     };
     for (name, start) in &starts {
         consider(start, (*name).to_string());
     }
-    // Refining is where the time goes, so only the start nearest the targets is refined:
-    // first for equation (2), then for both metrics.
+    // Equation (2) first, from the start nearest the targets: fitting the phase as well
+    // sometimes leads the magnitude search out of a poor basin.
     let ranked = starts
         .iter()
         .map(|(name, s)| (refine::objective_cost(s, target, objective), *name, s))
         .filter(|(c, _, _)| c.is_finite())
         .min_by(|x, y| x.0.total_cmp(&y.0));
-    if let Some((_, name, start)) = ranked {
-        let oe = refine::refine(start, target, Objective::OutputError, cfg.max_iterations / 2)?;
-        consider(&oe.sos, format!("{name} + gauss-newton(output-error)"));
-        let both = refine::refine(&oe.sos, target, objective, cfg.max_iterations)?;
-        consider(&both.sos, format!("{name} + gauss-newton(output-error) + gauss-newton(balanced)"));
-        // The balanced search straight from the start, in case the output-error detour
-        // (which also fits the assumed phase) led away from the best magnitude fit.
-        let direct = refine::refine(start, target, objective, cfg.max_iterations)?;
-        consider(&direct.sos, format!("{name} + gauss-newton(balanced)"));
+    // The balanced search from every start, as the linear starts land in different basins.
+    // The searches are independent, so they run on their own threads.
+    let (direct, chain) = std::thread::scope(|scope| {
+        let handles: Vec<_> = starts
+            .iter()
+            .map(|(_, s)| {
+                scope.spawn(move || refine::refine(s, target, objective, cfg.max_iterations))
+            })
+            .collect();
+        let chain = ranked.map(|(_, name, start)| -> Result<_, FitError> {
+            let oe = refine::refine(
+                start,
+                target,
+                Objective::OutputError,
+                cfg.max_iterations / 2,
+            )?;
+            let both = refine::refine(&oe.sos, target, objective, cfg.max_iterations)?;
+            Ok((name, oe.sos, both.sos))
+        });
+        let direct: Vec<_> = handles
+            .into_iter()
+            .map(|h| {
+                h.join()
+                    .unwrap_or(Err(FitError::Numerical("a refinement thread panicked")))
+            })
+            .collect();
+        (direct, chain)
+    });
+    for ((name, _), refined) in starts.iter().zip(direct) {
+        consider(&refined?.sos, format!("{name} + gauss-newton(balanced)"));
+    }
+    if let Some(chain) = chain {
+        let (name, oe, both) = chain?;
+        consider(&oe, format!("{name} + gauss-newton(output-error)"));
+        consider(
+            &both,
+            format!("{name} + gauss-newton(output-error) + gauss-newton(balanced)"),
+        );
     }
     best.map(|(_, f)| f).ok_or(FitError::NoFit { order })
 }
 
 /// Fits `target`, choosing the order as `cfg` says; `progress` sees each order tried.
 ///
-/// The automatic search steps through even orders (each adds one resonance) until one
-/// reaches both targets, then tries the odd order just below it, so that the order kept is
-/// the lowest that reaches them. If none does, the order closest to the targets is kept.
+/// The automatic search fits the bound first; if that cannot reach both targets, it is
+/// kept (a lower order would only be worse). Otherwise it bisects over even orders (each
+/// adds one resonance) for the lowest that reaches them, then tries the odd order just
+/// below. Bisection assumes that a higher order never fits worse, which holds for nested
+/// models up to the search's own imperfection; it costs `log2(max)` fits instead of `max`.
 ///
 /// # Errors
 /// As [`fit_order`]; the automatic search fails only if every order fails.
@@ -242,10 +292,13 @@ pub fn fit(
     cfg: &FitConfig,
     progress: &mut dyn FnMut(&OrderFit),
 ) -> Result<FitOutcome, FitError> {
-    let reached = |f: &OrderFit| f.metrics.lsd_db <= cfg.target_lsd.0 && f.metrics.nrmse <= cfg.target_nrmse;
+    let reached =
+        |f: &OrderFit| f.metrics.lsd_db <= cfg.target_lsd.0 && f.metrics.nrmse <= cfg.target_nrmse;
     let mut trials = Vec::new();
     let mut last_err = None;
-    let mut run = |order: usize, trials: &mut Vec<(usize, Metrics, String)>| match fit_order(target, grid, order, cfg) {
+    let mut run = |order: usize, trials: &mut Vec<(usize, Metrics, String)>| match fit_order(
+        target, grid, order, cfg,
+    ) {
         Ok(f) => {
             progress(&f);
             trials.push((order, f.metrics, f.method.clone()));
@@ -268,32 +321,39 @@ pub fn fit(
         }
         OrderChoice::Auto { max } => max,
     };
-    let mut best: Option<OrderFit> = None;
-    let mut order = 2.min(max);
-    loop {
-        if let Some(f) = run(order, &mut trials) {
-            if reached(&f) {
-                let mut chosen = f;
-                if order % 2 == 0 && order > 1 {
-                    if let Some(lower) = run(order - 1, &mut trials).filter(|l| reached(l)) {
-                        chosen = lower;
-                    }
-                }
-                return Ok(FitOutcome { best: chosen, trials });
-            }
-            if best.as_ref().is_none_or(|b| score(&f.metrics, cfg) < score(&b.metrics, cfg)) {
-                best = Some(f);
-            }
-        }
-        if order >= max {
+    // The bound first: if even it cannot reach the targets, no lower order will.
+    let Some(top) = run(max, &mut trials) else {
+        return Err(last_err.unwrap_or(FitError::NoFit { order: max }));
+    };
+    if !reached(&top) || max == 1 {
+        return Ok(FitOutcome { best: top, trials });
+    }
+    // Bisect over even orders for the lowest that reaches them: `hi` reaches, `lo` does not.
+    let (mut lo, mut hi, mut chosen) = (0, max, top);
+    while hi - lo > 2 {
+        let mid = (lo + (hi - lo) / 2) & !1;
+        let mid = if mid <= lo { lo + 2 } else { mid };
+        if mid >= hi {
             break;
         }
-        order = (order + 2).min(max);
+        match run(mid, &mut trials) {
+            Some(f) if reached(&f) => {
+                hi = mid;
+                chosen = f;
+            }
+            _ => lo = mid,
+        }
     }
-    match best {
-        Some(best) => Ok(FitOutcome { best, trials }),
-        None => Err(last_err.unwrap_or(FitError::NoFit { order: max })),
+    if hi > 1 && hi - 1 > lo {
+        if let Some(f) = run(hi - 1, &mut trials).filter(|f| reached(f)) {
+            chosen = f;
+        }
     }
+    trials.sort_by_key(|t| t.0);
+    Ok(FitOutcome {
+        best: chosen,
+        trials,
+    })
 }
 
 /// Reflects the unstable poles of each section into the unit circle, keeping the

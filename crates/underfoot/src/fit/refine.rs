@@ -188,11 +188,13 @@ fn rows_per(objective: Objective) -> usize {
     }
 }
 
-/// Residuals, and optionally the Jacobian (`rows x params`).
+/// Residuals, and optionally the Jacobian, stored transposed (`params x rows`) so that each
+/// frequency writes contiguous memory and `J^T J` is a symmetric rank update.
 fn evaluate(
     layout: &Layout,
     p: &[f64],
     target: &Target,
+    powers: &[(Complex64, Complex64)],
     objective: Objective,
     mut jac: Option<&mut DMatrix<f64>>,
 ) -> Vec<f64> {
@@ -201,15 +203,15 @@ fn evaluate(
     let per = rows_per(objective);
     let mut r = Vec::with_capacity(per * target.len());
     if let Some(j) = jac.as_deref_mut() {
-        if j.shape() != (per * target.len(), np) {
-            *j = DMatrix::zeros(per * target.len(), np);
+        if j.shape() != (np, per * target.len()) {
+            *j = DMatrix::zeros(np, per * target.len());
         }
     }
     let mut dlog = vec![Complex64::new(0.0, 0.0); np];
     let one = Complex64::new(1.0, 0.0);
-    for k in 0..target.len() {
-        let z1 = Complex64::from_polar(1.0, -target.omega[k]);
-        let z2 = z1 * z1;
+    // The reflection map is the same at every frequency: evaluate it once per parameter.
+    let kmap: Vec<(f64, f64)> = p.iter().map(|&u| to_k(u)).collect();
+    for (k, &(z1, z2)) in powers.iter().enumerate() {
         let h = target.h[k];
         let mut hm = one;
         let mut col = 0;
@@ -217,24 +219,27 @@ fn evaluate(
             let bz = s.b[0] + s.b[1] * z1 + s.b[2] * z2;
             let az = s.a[0] + s.a[1] * z1 + s.a[2] * z2;
             // A zero exactly on the grid would make ln|B| infinite; nudge it.
-            let bz = if bz.norm_sqr() < 1e-300 { Complex64::new(1e-150, 0.0) } else { bz };
+            let bz = if bz.norm_sqr() < 1e-300 {
+                Complex64::new(1e-150, 0.0)
+            } else {
+                bz
+            };
             hm *= bz / az;
             let (ib, ia) = (bz.inv(), az.inv());
-            let powers = [one, z1, z2];
-            for (j, zp) in powers.iter().take(nb).enumerate() {
+            for (j, zp) in [one, z1, z2].iter().take(nb).enumerate() {
                 dlog[col + j] = zp * ib;
             }
             col += nb;
             match d {
                 Den::Two => {
-                    let ((k1, dk1), (k2, dk2)) = (to_k(p[col]), to_k(p[col + 1]));
+                    let ((k1, dk1), (k2, dk2)) = (kmap[col], kmap[col + 1]);
                     let (da1, da2) = (-z1 * ia, -z2 * ia);
                     dlog[col] = da1 * dk1 * (1.0 + k2);
                     dlog[col + 1] = da1 * k1 * dk2 + da2 * dk2;
                     col += 2;
                 }
                 Den::One => {
-                    dlog[col] = -z1 * ia * to_k(p[col]).1;
+                    dlog[col] = -z1 * ia * kmap[col].1;
                     col += 1;
                 }
                 Den::None => {}
@@ -250,8 +255,8 @@ fn evaluate(
                 if let Some(j) = jac.as_deref_mut() {
                     for (c, dl) in dlog.iter().enumerate() {
                         let v = hm * dl * w;
-                        j[(2 * k, c)] = v.re;
-                        j[(2 * k + 1, c)] = v.im;
+                        j[(c, 2 * k)] = v.re;
+                        j[(c, 2 * k + 1)] = v.im;
                     }
                 }
             }
@@ -260,25 +265,40 @@ fn evaluate(
                 r.push(w * (mag / h.norm().max(1e-300)).ln());
                 if let Some(j) = jac.as_deref_mut() {
                     for (c, dl) in dlog.iter().enumerate() {
-                        j[(k, c)] = w * dl.re;
+                        j[(c, k)] = w * dl.re;
                     }
                 }
             }
-            Objective::Balanced { lin_scale, log_scale } => {
+            Objective::Balanced {
+                lin_scale,
+                log_scale,
+            } => {
                 let (mag, want) = (hm.norm().max(1e-300), h.norm().max(1e-300));
                 let (wl, wg) = (w / lin_scale, w / log_scale);
                 r.push(wl * (mag - want));
                 r.push(wg * (mag / want).ln());
                 if let Some(j) = jac.as_deref_mut() {
                     for (c, dl) in dlog.iter().enumerate() {
-                        j[(2 * k, c)] = wl * mag * dl.re;
-                        j[(2 * k + 1, c)] = wg * dl.re;
+                        j[(c, 2 * k)] = wl * mag * dl.re;
+                        j[(c, 2 * k + 1)] = wg * dl.re;
                     }
                 }
             }
         }
     }
     r
+}
+
+/// `(z^-1, z^-2)` on the unit circle at each target frequency.
+fn unit_powers(target: &Target) -> Vec<(Complex64, Complex64)> {
+    target
+        .omega
+        .iter()
+        .map(|&w| {
+            let z1 = Complex64::from_polar(1.0, -w);
+            (z1, z1 * z1)
+        })
+        .collect()
 }
 
 fn cost(r: &[f64]) -> f64 {
@@ -315,14 +335,15 @@ pub fn refine(
     let layout = Layout::of(sos);
     let np = layout.len();
     let mut p = layout.pack(sos);
+    let powers = unit_powers(target);
     let mut jac = DMatrix::<f64>::zeros(0, 0);
-    let mut r = evaluate(&layout, &p, target, objective, Some(&mut jac));
+    let mut r = evaluate(&layout, &p, target, &powers, objective, Some(&mut jac));
     let mut c = cost(&r);
     let mut lambda = 1e-3;
     let mut steps = 0;
     'outer: for _ in 0..max_iter {
-        let jtj = jac.tr_mul(&jac);
-        let g = jac.tr_mul(&DVector::from_column_slice(&r));
+        let jtj = &jac * jac.transpose();
+        let g = &jac * DVector::from_column_slice(&r);
         let diag: Vec<f64> = (0..np)
             .map(|a| jtj[(a, a)].max(1e-12 * (1.0 + jtj[(a, a)])))
             .collect();
@@ -340,16 +361,16 @@ pub fn refine(
             };
             let delta = chol.solve(&(-&g));
             let trial: Vec<f64> = p.iter().zip(delta.iter()).map(|(x, d)| x + d).collect();
-            let r_trial = evaluate(&layout, &trial, target, objective, None);
+            let r_trial = evaluate(&layout, &trial, target, &powers, objective, None);
             let c_trial = cost(&r_trial);
             if c_trial < c {
                 let gain = (c - c_trial) / c.max(1e-300);
                 p = trial;
-                r = evaluate(&layout, &p, target, objective, Some(&mut jac));
+                r = evaluate(&layout, &p, target, &powers, objective, Some(&mut jac));
                 c = c_trial;
                 steps += 1;
                 lambda = (lambda / 3.0).max(1e-15);
-                if gain < 1e-10 {
+                if gain < 1e-7 {
                     break 'outer;
                 }
                 break;
@@ -374,7 +395,14 @@ pub fn refine(
 pub fn objective_cost(sos: &Sos, target: &Target, objective: Objective) -> f64 {
     let layout = Layout::of(sos);
     let p = layout.pack(sos);
-    cost(&evaluate(&layout, &p, target, objective, None))
+    cost(&evaluate(
+        &layout,
+        &p,
+        target,
+        &unit_powers(target),
+        objective,
+        None,
+    ))
 }
 
 #[cfg(test)]
@@ -419,21 +447,25 @@ mod tests {
         for obj in [
             Objective::OutputError,
             Objective::LogMagnitude,
-            Objective::Balanced { lin_scale: 0.3, log_scale: 0.05 },
+            Objective::Balanced {
+                lin_scale: 0.3,
+                log_scale: 0.05,
+            },
         ] {
             let layout = Layout::of(&sos);
             let p = layout.pack(&sos);
             let mut jac = DMatrix::zeros(0, 0);
-            let r0 = evaluate(&layout, &p, &t, obj, Some(&mut jac));
+            let zp = unit_powers(&t);
+            let r0 = evaluate(&layout, &p, &t, &zp, obj, Some(&mut jac));
             let np = layout.len();
             for c in 0..np {
                 let mut q = p.clone();
                 let h = 1e-6;
                 q[c] += h;
-                let r1 = evaluate(&layout, &q, &t, obj, None);
+                let r1 = evaluate(&layout, &q, &t, &zp, obj, None);
                 for row in 0..r0.len() {
                     let fd = (r1[row] - r0[row]) / h;
-                    let an = jac[(row, c)];
+                    let an = jac[(c, row)];
                     assert!(
                         (fd - an).abs() < 1e-4 * (1.0 + an.abs()),
                         "{obj:?} col {c} row {row}: {fd} vs {an}"

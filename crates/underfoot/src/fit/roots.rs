@@ -161,8 +161,7 @@ fn sections_from_factors(zeros: Vec<Factor>, poles: &[Complex64], k: f64) -> Vec
             }
             _ => {
                 let mut num = [1.0, 0.0, 0.0];
-                let mut deg = 0;
-                for _ in 0..2 {
+                for deg in 0..2 {
                     let Some((i, _)) = z_singles
                         .iter()
                         .enumerate()
@@ -176,7 +175,6 @@ fn sections_from_factors(zeros: Vec<Factor>, poles: &[Complex64], k: f64) -> Vec
                         Factor::Delay => [0.0, 1.0],
                     };
                     let prod = crate::signal::sos::poly_mul(&num[..=deg], &factor);
-                    deg += 1;
                     num = [0.0; 3];
                     num[..prod.len()].copy_from_slice(&prod);
                 }

@@ -7,8 +7,8 @@
 
 use std::time::Instant;
 
-use crate::analysis::{measure, AnalysisConfig, AnalysisError, MeasuredResponse};
-use crate::fit::{fit, FitConfig, FitError, MetricGrid, Metrics, Target};
+use crate::analysis::{AnalysisConfig, AnalysisError, MeasuredResponse, measure};
+use crate::fit::{FitConfig, FitError, MetricGrid, Metrics, Target, fit};
 use crate::material::{FilterCoefficients, FitRecord, MaterialModel, SourceFile};
 use crate::recording::Recording;
 
@@ -102,11 +102,17 @@ pub fn build_material_with_report(
     let started = Instant::now();
     let a = &cfg.analysis;
     let measured = measure(recordings, a)?;
-    progress(&Progress::Measured { strikes: measured.strikes.len() });
+    progress(&Progress::Measured {
+        strikes: measured.strikes.len(),
+    });
 
     let target = Target::minimum_phase(a.rate, a.band, &measured.magnitude, cfg.fit.grid_points)?;
     let freqs = a.band.log_grid(METRIC_POINTS);
-    let grid = MetricGrid { rate: a.rate, measured: measured.on_grid(&freqs), freqs };
+    let grid = MetricGrid {
+        rate: a.rate,
+        measured: measured.on_grid(&freqs),
+        freqs,
+    };
     let max_order = match cfg.fit.order {
         crate::fit::OrderChoice::Auto { max } => max,
         crate::fit::OrderChoice::Fixed(n) => n,
@@ -138,15 +144,27 @@ pub fn build_material_with_report(
         },
         sources: recordings
             .iter()
-            .map(|r| SourceFile { file: r.name.clone(), sha256: r.sha256.clone() })
+            .map(|r| SourceFile {
+                file: r.name.clone(),
+                sha256: r.sha256.clone(),
+            })
             .collect(),
     };
-    Ok((model, BuildReport { measured, levi: best.levi, trials: outcome.trials }))
+    Ok((
+        model,
+        BuildReport {
+            measured,
+            levi: best.levi,
+            trials: outcome.trials,
+        },
+    ))
 }
 
 /// Names are what a file name, a CLI argument and a JSON key can all hold without quoting.
 fn valid_name(name: &str) -> bool {
     !name.is_empty()
         && name.len() <= 64
-        && name.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
 }
