@@ -373,3 +373,206 @@ fn fit_checks_its_arguments_and_out_library_before_reading() {
         assert_eq!(run(&args).status.code(), Some(2), "{extra:?}");
     }
 }
+
+fn write_wav_i16(path: &Path, rate: u32, samples: &[f64]) {
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: rate,
+        bits_per_sample: 16,
+        sample_format: hound::SampleFormat::Int,
+    };
+    let mut w = hound::WavWriter::create(path, spec).expect("create wav");
+    for &x in samples {
+        w.write_sample((x * 32767.0).round() as i16).expect("write");
+    }
+    w.finalize().expect("finalize");
+}
+
+fn write_wav_f32(path: &Path, rate: u32, samples: &[f32]) {
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: rate,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let mut w = hound::WavWriter::create(path, spec).expect("create wav");
+    for &x in samples {
+        w.write_sample(x).expect("write");
+    }
+    w.finalize().expect("finalize");
+}
+
+/// Three seeded strikes through a known resonance (80 Hz, then 300 Hz), 8 kHz, 2 s.
+fn strikes(rate: u32) -> Vec<f64> {
+    let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+    let mut noise = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let fs = f64::from(rate);
+    let mut x: Vec<f64> = (0..2 * rate as usize).map(|_| 1e-4 * noise()).collect();
+    for onset in [0.2, 0.8, 1.4] {
+        let start = (onset * fs) as usize;
+        for n in 0..(0.4 * fs) as usize {
+            let t = n as f64 / fs;
+            let env = (-t / 0.04).exp();
+            x[start + n] += 0.5
+                * env
+                * ((std::f64::consts::TAU * 80.0 * t).sin()
+                    + 0.5 * (std::f64::consts::TAU * 300.0 * t).sin()
+                    + 0.05 * noise());
+        }
+    }
+    x
+}
+
+/// Every kind of bad recording: a clear message naming the file and the fault, a
+/// non-zero exit, and the existing library byte-for-byte as it was.
+#[test]
+fn fit_of_each_bad_recording_kind_fails_clearly_and_keeps_library() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (lib, before) = existing_library(dir.path());
+    let p = |n: &str| dir.path().join(n);
+
+    fs::write(p("empty.wav"), b"").expect("write");
+    write_wav_i16(&p("header-only.wav"), 8000, &[]);
+    write_wav_i16(&p("silent.wav"), 8000, &vec![0.0; 8000]);
+    write_wav_i16(&p("short.wav"), 8000, &strikes(8000)[1600..1700]);
+    let mut nan: Vec<f32> = strikes(8000).iter().map(|&v| v as f32).collect();
+    nan[5000] = f32::NAN;
+    write_wav_f32(&p("nan.wav"), 8000, &nan);
+    write_wav_i16(&p("whole.wav"), 8000, &strikes(8000));
+    let whole = fs::read(p("whole.wav")).expect("read");
+    fs::write(p("truncated.wav"), &whole[..whole.len() / 2]).expect("write");
+    fs::remove_file(p("whole.wav")).expect("rm");
+    fs::write(p("garbage.ogg"), b"OggS\x00\x02 definitely not vorbis").expect("write");
+    fs::write(p("nan.csv"), "t,accel\n0,0.1\n1,nan\n2,0.3\n").expect("write");
+
+    let cases: [(&str, &[&str], &str); 8] = [
+        ("empty.wav", &[], "corrupt"),
+        ("header-only.wav", &[], "no samples"),
+        ("silent.wav", &[], "silent"),
+        ("short.wav", &[], "shorter than"),
+        ("nan.wav", &[], "not a finite number"),
+        ("truncated.wav", &[], "corrupt"),
+        ("garbage.ogg", &[], "corrupt"),
+        (
+            "nan.csv",
+            &["--csv-column", "accel", "--csv-rate", "1000"],
+            "not a finite number",
+        ),
+    ];
+    for (name, extra, fault) in cases {
+        let file = p(name);
+        let mut args = vec!["fit", "--material", "sand", "--out", s(&lib)];
+        args.extend_from_slice(extra);
+        args.push(s(&file));
+        let e = assert_error(&run(&args));
+        assert!(e.contains(name), "{name}: error must name the file: {e}");
+        assert!(e.contains(fault), "{name}: error must say {fault:?}: {e}");
+        assert_eq!(
+            fs::read(&lib).expect("read"),
+            before,
+            "{name}: library changed"
+        );
+    }
+}
+
+/// A recording whose content cannot be fitted as asked (band above the analysis Nyquist)
+/// fails before anything is written.
+#[test]
+fn fit_with_band_beyond_rate_fails_and_keeps_library() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (lib, before) = existing_library(dir.path());
+    let wav = dir.path().join("steps.wav");
+    write_wav_i16(&wav, 8000, &strikes(8000));
+    let o = run(&[
+        "fit",
+        "--material",
+        "x",
+        "--out",
+        s(&lib),
+        "--rate",
+        "1000",
+        s(&wav),
+    ]);
+    let e = assert_error(&o);
+    assert!(e.contains("does not fit"), "{e}");
+    assert_eq!(fs::read(&lib).expect("read"), before);
+}
+
+/// The whole path on a recording the test makes: the model lands in the library next to
+/// what was there, the report and plot are written, and its spectrum peaks where the
+/// recording's resonance is.
+#[test]
+fn fit_adds_a_material_writes_report_and_plot() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (lib, _) = existing_library(dir.path());
+    let wav = dir.path().join("steps.wav");
+    write_wav_i16(&wav, 8000, &strikes(8000));
+    let report = dir.path().join("report.json");
+    let plot = dir.path().join("fit.svg");
+    let o = run(&[
+        "fit",
+        "--material",
+        "synthetic",
+        "--out",
+        s(&lib),
+        "--report",
+        s(&report),
+        "--plot",
+        s(&plot),
+        s(&wav),
+    ]);
+    assert_ok(&o);
+    assert!(stdout(&o).contains("synthetic: order"), "{}", stdout(&o));
+
+    let library = Library::load(&lib).expect("library");
+    assert_eq!(library.names(), vec!["gravel", "synthetic"]);
+    let m = library.get("synthetic").expect("model");
+    assert_eq!(m.fit.strikes, 3, "three strikes in the recording");
+    assert!(m.fit.lsd_db <= 1.0, "LSD {}", m.fit.lsd_db);
+    let peak = m
+        .fit
+        .grid_hz
+        .iter()
+        .zip(&m.fit.model)
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .map(|(f, _)| *f)
+        .expect("grid");
+    assert!(
+        (70.0..92.0).contains(&peak),
+        "model peak at {peak} Hz, resonance at 80 Hz"
+    );
+    assert_eq!(m.sources[0].file, "steps.wav");
+
+    let r: serde_json::Value =
+        serde_json::from_slice(&fs::read(&report).expect("report")).expect("json");
+    let entry = &r["materials"][0];
+    assert_eq!(entry["name"], "synthetic");
+    for key in ["order", "nrmse", "lsd_db", "fit_seconds"] {
+        assert!(entry[key].is_number(), "report lacks {key}: {r}");
+    }
+    let svg = fs::read_to_string(&plot).expect("plot");
+    assert!(
+        svg.starts_with("<svg") && svg.contains("polyline"),
+        "not a plot"
+    );
+
+    // Fitting again replaces, keeps one entry.
+    assert_ok(&run(&[
+        "fit",
+        "--material",
+        "synthetic",
+        "--out",
+        s(&lib),
+        "--order",
+        "4",
+        s(&wav),
+    ]));
+    let library = Library::load(&lib).expect("library");
+    assert_eq!(library.names(), vec!["gravel", "synthetic"]);
+    assert_eq!(library.get("synthetic").expect("model").order, 4);
+}

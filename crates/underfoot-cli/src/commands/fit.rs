@@ -199,20 +199,21 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     }
     reading.finish_and_clear();
 
-    let fitting = bar(0, "fitting  [{bar:30}] order {pos}/{len} {msg}");
+    // The order search bisects, so orders arrive out of sequence: count fits, not orders.
+    let fitting = bar(0, "fitting  {spinner} {pos} orders tried {msg}");
     let started = Instant::now();
     let model = build_material(&args.material, &recordings, &cfg, &mut |p| match p {
         Progress::Measured { strikes, .. } => fitting.set_message(format!("{strikes} strikes")),
         Progress::OrderTried {
             order,
-            max_order,
             lsd_db,
             nrmse,
             ..
         } => {
-            fitting.set_length(*max_order as u64);
-            fitting.set_position(*order as u64);
-            fitting.set_message(format!("LSD {lsd_db:.2} dB, NRMSE {nrmse:.4}"));
+            fitting.inc(1);
+            fitting.set_message(format!(
+                "(last: order {order}, LSD {lsd_db:.2} dB, NRMSE {nrmse:.4})"
+            ));
         }
         _ => {}
     })
@@ -223,13 +224,13 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     let replaced = library.upsert(model.clone()).is_some();
     library.save(&args.out)?;
     emit(&format!(
-        "{}: order {}, NRMSE {:.4}, LSD {:.2} dB, {} strikes, {:.1} s -> {} ({})\n",
+        "{}: order {}, NRMSE {:.4}, LSD {:.2} dB, {} strikes, {:.0} ms -> {} ({})\n",
         model.name,
         model.order,
         model.fit.nrmse,
         model.fit.lsd_db,
         model.fit.strikes,
-        elapsed,
+        elapsed * 1e3,
         args.out.display(),
         if replaced { "replaced" } else { "added" }
     ))?;
