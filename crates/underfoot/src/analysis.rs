@@ -15,7 +15,7 @@
 //!    material's. An octave of margin below and half an octave above keep the band clean.
 //!    Above the band, the resampler's anti-alias filter already does the low-pass's work
 //!    when the band reaches 0.9 times the Nyquist frequency (the default 900 Hz at 2 kHz).
-//! 4. **Find the strikes** ([`find_onsets`](crate::recording::strikes::find_onsets)) and cut
+//! 4. **Find the strikes** ([`find_onsets`]) and cut
 //!    each from `pre_onset` before its onset for `strike_length`, stopping short of the next
 //!    strike, zero-padded to the FFT length (4x the strike length rounded up to a power of
 //!    two, so the spectrum is finely interpolated).

@@ -17,6 +17,53 @@
 //! [`Hz`](units::Hz), and neither is a bare `f64`.
 //!
 //! Every stage reports bad input through its own error enum; nothing panics on a bad file.
+//!
+//! # Quick start
+//!
+//! Fit a material from recordings of heel strikes on it, then keep it in a library file.
+//! Here the "recording" is made up: two strikes on a floor that rings at 120 Hz.
+//!
+//! ```
+//! use underfoot::material::build::{build_material, BuildConfig};
+//! use underfoot::material::Library;
+//! use underfoot::recording::Recording;
+//! use underfoot::units::{Hz, SampleRate};
+//!
+//! let rate = SampleRate(8000);
+//! let mut seed = 1u32;
+//! let mut noise = move || {
+//!     seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+//!     f64::from(seed >> 8) / f64::from(1u32 << 24) - 0.5
+//! };
+//! let mut samples: Vec<f64> = (0..16_000).map(|_| 1e-4 * noise()).collect();
+//! for onset in [2_000, 10_000] {
+//!     for n in 0..3_000 {
+//!         let t = n as f64 / 8000.0;
+//!         samples[onset + n] += (-t / 0.05).exp() * (std::f64::consts::TAU * 120.0 * t).sin();
+//!     }
+//! }
+//! // Real recordings come from `underfoot::recording::read(path, None)`.
+//! let floor = Recording { name: "floor.wav".into(), rate, samples, sha256: String::new() };
+//!
+//! // Conditioning, strike detection, the measured response and the order search,
+//! // with the defaults: 2 kHz analysis rate, 20-900 Hz band, order up to 16.
+//! let model = build_material("floor", &[floor], &BuildConfig::default(), &mut |_| {})?;
+//! assert_eq!(model.fit.strikes, 2);
+//! assert!(model.fit.lsd_db < 1.0);
+//!
+//! // The filter runs as second-order sections; it rings where the floor does.
+//! let filter = model.sos().expect("a fitted model has sections");
+//! assert!(filter.is_stable());
+//! let gain = |f: f64| filter.response(model.sample_rate.omega(Hz(f))).norm();
+//! assert!(gain(120.0) > 10.0 * gain(500.0));
+//!
+//! // A library file holds many materials; `save` replaces the file atomically.
+//! let mut library = Library::new();
+//! library.upsert(model);
+//! let json = library.to_json();
+//! assert!(json.contains("underfoot.library/1"));
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 pub mod analysis;
 pub mod fit;
 pub mod material;

@@ -11,6 +11,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use underfoot::analysis::SavgolSetting;
 use underfoot::fit::OrderChoice;
 use underfoot::material::Library;
 use underfoot::material::build::{BuildConfig, Progress, build_material};
@@ -50,6 +51,11 @@ pub struct FitArgs {
     /// Search orders up to N and keep the lowest that meets the targets [default: 16].
     #[arg(long, value_name = "N", value_parser = parse_order)]
     max_order: Option<usize>,
+    /// Savitzky-Golay denoising at each recording's rate: `auto` (the widest window of
+    /// polynomial order 3 within 0.1 dB up to the band's top), `off`, or `WINDOW:ORDER`
+    /// (odd window in samples, polynomial order) [default: auto].
+    #[arg(long, value_name = "auto|off|W:P", value_parser = parse_savgol)]
+    savgol: Option<SavgolSetting>,
     /// Target log-spectral distance of the order search, in dB [default: 0.5].
     #[arg(long, value_name = "DB", value_parser = parse_positive)]
     target_lsd: Option<f64>,
@@ -82,6 +88,24 @@ fn parse_band(s: &str) -> Result<Band, String> {
         return Err(format!("band {s:?}: need 0 < LO < HI"));
     }
     Ok(Band::new(lo, hi))
+}
+
+fn parse_savgol(s: &str) -> Result<SavgolSetting, String> {
+    match s.trim() {
+        "auto" => return Ok(SavgolSetting::Auto { polyorder: 3 }),
+        "off" => return Ok(SavgolSetting::Off),
+        _ => {}
+    }
+    let bad = || format!("{s:?}: expected auto, off, or WINDOW:ORDER such as 17:3");
+    let (w, p) = s.split_once(':').ok_or_else(bad)?;
+    let window: usize = w.trim().parse().map_err(|_| bad())?;
+    let polyorder: usize = p.trim().parse().map_err(|_| bad())?;
+    if window % 2 == 0 || polyorder >= window {
+        return Err(format!(
+            "savgol {s:?}: the window must be odd and larger than the polynomial order"
+        ));
+    }
+    Ok(SavgolSetting::Fixed { window, polyorder })
 }
 
 fn parse_order(s: &str) -> Result<usize, String> {
@@ -122,6 +146,9 @@ impl FitArgs {
             (Some(n), _) => cfg.fit.order = OrderChoice::Fixed(n),
             (None, Some(max)) => cfg.fit.order = OrderChoice::Auto { max },
             (None, None) => {}
+        }
+        if let Some(sg) = self.savgol {
+            cfg.analysis.savgol = sg;
         }
         if let Some(t) = self.target_lsd {
             cfg.fit.target_lsd = Decibels(t);
@@ -283,5 +310,14 @@ mod tests {
         assert_eq!(parse_order("8"), Ok(8));
         assert!(parse_order("0").is_err());
         assert!(parse_positive("nan").is_err() && parse_positive("-1").is_err());
+        assert_eq!(
+            parse_savgol("17:3"),
+            Ok(SavgolSetting::Fixed {
+                window: 17,
+                polyorder: 3
+            })
+        );
+        assert_eq!(parse_savgol("off"), Ok(SavgolSetting::Off));
+        assert!(parse_savgol("16:3").is_err() && parse_savgol("5:5").is_err());
     }
 }

@@ -1,7 +1,7 @@
 //! Fitting a material model from recordings: the whole pipeline in one call.
 //!
-//! recordings -> [`measure`](crate::analysis::measure) -> minimum-phase
-//! [`Target`](crate::fit::Target) on a log grid of the band -> [`fit`](crate::fit::fit)
+//! recordings -> [`measure`] -> minimum-phase
+//! [`Target`] on a log grid of the band -> [`fit`]
 //! with its order search -> [`MaterialModel`], whose `fit` record holds the measured and
 //! model magnitudes on 96 log-spaced frequencies of the band and both metrics there.
 
