@@ -404,13 +404,8 @@ fn write_wav_f32(path: &Path, rate: u32, samples: &[f32]) {
 
 /// Three seeded strikes through a known resonance (80 Hz, then 300 Hz), 8 kHz, 2 s.
 fn strikes(rate: u32) -> Vec<f64> {
-    let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
-    let mut noise = move || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
+    let mut rng = underfoot::signal::noise::SplitMix64::new(0x9e37_79b9);
+    let mut noise = move || rng.uniform() - 0.5;
     let fs = f64::from(rate);
     let mut x: Vec<f64> = (0..2 * rate as usize).map(|_| 1e-4 * noise()).collect();
     for onset in [0.2, 0.8, 1.4] {

@@ -11,6 +11,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use underfoot::material::build::{BuildConfig, build_material};
 use underfoot::recording::{Recording, read};
 use underfoot::signal::Sos;
+use underfoot::signal::noise::SplitMix64;
 use underfoot::signal::sos::{Biquad, RootPair};
 use underfoot::units::SampleRate;
 
@@ -41,13 +42,8 @@ fn synthetic() -> Vec<Recording> {
             1.0,
         ),
     ]);
-    let mut seed = 0x2545_f491_4f6c_dd1d_u64;
-    let mut noise = move || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
+    let mut rng = SplitMix64::new(0x2545_f491_4f6c_dd1d);
+    let mut noise = move || rng.uniform() - 0.5;
     (0..3)
         .map(|i| {
             let mut x: Vec<f64> = (0..rate.0 as usize).map(|_| 1e-4 * noise()).collect();

@@ -27,15 +27,12 @@
 //! use underfoot::material::build::{build_material, BuildConfig};
 //! use underfoot::material::Library;
 //! use underfoot::recording::Recording;
+//! use underfoot::signal::noise::SplitMix64;
 //! use underfoot::units::{Hz, SampleRate};
 //!
 //! let rate = SampleRate(8000);
-//! let mut seed = 1u32;
-//! let mut noise = move || {
-//!     seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-//!     f64::from(seed >> 8) / f64::from(1u32 << 24) - 0.5
-//! };
-//! let mut samples: Vec<f64> = (0..16_000).map(|_| 1e-4 * noise()).collect();
+//! let mut noise = SplitMix64::new(1);
+//! let mut samples: Vec<f64> = (0..16_000).map(|_| 1e-4 * noise.symmetric()).collect();
 //! for onset in [2_000, 10_000] {
 //!     for n in 0..3_000 {
 //!         let t = n as f64 / 8000.0;

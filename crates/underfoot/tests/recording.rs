@@ -7,6 +7,7 @@ use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 use underfoot::recording::strikes::{OnsetConfig, find_onsets};
 use underfoot::recording::{CsvSpec, MIN_DURATION, Recording, RecordingError, read, read_bytes};
+use underfoot::signal::noise::SplitMix64;
 use underfoot::units::SampleRate;
 
 fn hex_sha256(bytes: &[u8]) -> String {
@@ -48,7 +49,7 @@ fn write_wav_f32(path: &Path, rate: u32, channels: u16, interleaved: &[f32]) {
 
 /// A deterministic test signal: two incommensurate tones plus seeded noise, in [-0.9, 0.9].
 fn test_signal(n: usize, seed: u64) -> Vec<f64> {
-    let mut rng = common::Rng(seed);
+    let mut rng = SplitMix64::new(seed);
     (0..n)
         .map(|i| {
             let t = i as f64;
@@ -549,7 +550,7 @@ fn missing_file_is_io_error_naming_it() {
 
 #[test]
 fn garbage_bytes_are_corrupt_whatever_the_extension() {
-    let mut rng = common::Rng(77);
+    let mut rng = SplitMix64::new(77);
     let garbage: Vec<u8> = (0..20_000).map(|_| rng.next_u64() as u8).collect();
     let dir = tempfile::tempdir().unwrap();
     for name in ["noise.wav", "noise.ogg", "noise.flac", "noise"] {

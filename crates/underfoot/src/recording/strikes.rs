@@ -235,23 +235,7 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    /// SplitMix64 with Box-Muller: seeded noise without an RNG dependency.
-    struct Rng(u64);
-
-    impl Rng {
-        fn uniform(&mut self) -> f64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-        }
-        fn normal(&mut self) -> f64 {
-            let u1 = 1.0 - self.uniform();
-            let u2 = self.uniform();
-            (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-        }
-    }
+    use crate::signal::noise::SplitMix64;
 
     /// One heel strike: two decaying resonances (a ground mode and a higher one) that start
     /// at rest, optionally after a linear attack.
@@ -266,7 +250,7 @@ mod tests {
     /// Seeded white noise of standard deviation `noise` plus the bursts, `len` seconds at `fs`.
     fn synth(fs: u32, len: f64, noise: f64, seed: u64, bursts: &[Burst]) -> Vec<f64> {
         let fs = f64::from(fs);
-        let mut rng = Rng(seed);
+        let mut rng = SplitMix64::new(seed);
         let n = (len * fs) as usize;
         let mut x: Vec<f64> = (0..n).map(|_| noise * rng.normal()).collect();
         for b in bursts {

@@ -3,6 +3,7 @@
 //! Each block is independent and tested against its closed-form definition.
 pub mod butterworth;
 pub mod filtfilt;
+pub mod noise;
 pub mod resample;
 pub mod savgol;
 pub mod sos;

@@ -218,17 +218,7 @@ mod tests {
     use super::*;
     use std::f64::consts::PI;
 
-    struct Rng(u64);
-    impl Rng {
-        fn next_f64(&mut self) -> f64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^= z >> 31;
-            (z >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        }
-    }
+    use crate::signal::noise::SplitMix64;
 
     fn naive_dft_magnitude(x: &[f64], n_fft: usize) -> Vec<f64> {
         (0..=n_fft / 2)
@@ -247,7 +237,7 @@ mod tests {
 
     #[test]
     fn magnitude_matches_naive_dft() {
-        let mut rng = Rng(42);
+        let mut rng = SplitMix64::new(42);
         for (len, n_fft) in [
             (1, 1),
             (5, 8),
@@ -257,7 +247,7 @@ mod tests {
             (97, 97),
             (250, 1023),
         ] {
-            let x: Vec<f64> = (0..len).map(|_| rng.next_f64()).collect();
+            let x: Vec<f64> = (0..len).map(|_| rng.symmetric()).collect();
             let mut plan = SpectrumPlan::new(n_fft);
             assert_eq!(plan.n_fft(), n_fft);
             let mut out = vec![0.0; n_fft / 2 + 1];
@@ -275,9 +265,9 @@ mod tests {
 
     #[test]
     fn parseval() {
-        let mut rng = Rng(9);
+        let mut rng = SplitMix64::new(9);
         for n_fft in [512, 1001] {
-            let x: Vec<f64> = (0..400).map(|_| rng.next_f64()).collect();
+            let x: Vec<f64> = (0..400).map(|_| rng.symmetric()).collect();
             let mut plan = SpectrumPlan::new(n_fft);
             let mut out = vec![0.0; plan.bins()];
             plan.magnitude(&x, &mut out).unwrap();
@@ -354,11 +344,11 @@ mod tests {
 
     #[test]
     fn smoothing_matches_direct_integration() {
-        let mut rng = Rng(5);
+        let mut rng = SplitMix64::new(5);
         // Levels spread over 170 dB, loud at the bottom: plain prefix sums of power would
         // cancel the quiet top into rounding noise (relative error ~ 1e-16 * 1e17).
         let mag: Vec<f64> = (0..3000)
-            .map(|k| 10f64.powf(4.0 - 8.0 * (k as f64 / 3000.0) + 0.5 * rng.next_f64()))
+            .map(|k| 10f64.powf(4.0 - 8.0 * (k as f64 / 3000.0) + 0.5 * rng.symmetric()))
             .collect();
         for fraction in [1.0, 3.0, 6.0, 24.0, 0.3] {
             let got = fractional_octave_smooth(&mag, 0.5, fraction);
@@ -379,8 +369,8 @@ mod tests {
             }
         }
         // At 1/6 octave the bands of bins 1..=8 are narrower than a bin: kept as they are.
-        let mut rng = Rng(1);
-        let mag: Vec<f64> = (0..100).map(|_| rng.next_f64().abs()).collect();
+        let mut rng = SplitMix64::new(1);
+        let mag: Vec<f64> = (0..100).map(|_| rng.symmetric().abs()).collect();
         let s = fractional_octave_smooth(&mag, 2.0, 6.0);
         for k in 0..=8 {
             assert_eq!(s[k], mag[k], "bin {k}");
