@@ -14,7 +14,7 @@
 //! * a second-order denominator `1 + a_1 z^-1 + a_2 z^-2` is written through its reflection
 //!   coefficients, `a_2 = k_2`, `a_1 = k_1 (1 + k_2)`, with `k_i = tanh(u_i)`. The map from
 //!   `(u_1, u_2)` in the whole plane onto the open stability triangle is smooth and onto
-//!   (scaled by `1 - 1e-12` so that rounding can never reach the circle), so
+//!   (scaled by `1 - 1e-7` so that rounding can never reach the circle), so
 //!   an unconstrained step in `u` can never cross the unit circle. A first-order
 //!   denominator is `1 + tanh(u) z^-1`;
 //! * numerator coefficients `b_{i0} .. b_{i d_i}` are free (zeros may lie anywhere), up to
@@ -48,9 +48,13 @@ use num_complex::Complex64;
 use super::{FitError, Target};
 use crate::signal::{Biquad, Sos};
 
-/// Reflection coefficients are `K_MAX tanh(u)`: `tanh` alone rounds to exactly 1 for
-/// `u > 19`, which would put a pole on the circle.
-const K_MAX: f64 = 1.0 - 1e-12;
+/// Reflection coefficients are `K_MAX tanh(u)`. `tanh` alone rounds to exactly 1 for
+/// `u > 19`, which would put a pole on the circle; and near the stability triangle's corner
+/// `(a1, a2) = (0, -1)` a pole's distance from the circle shrinks as the *square* of
+/// `1 - |k|`, so the margin must be large enough that its square still shows in a double.
+/// `1 - 1e-7` keeps every pole at least about `1e-14` inside, and still reaches a
+/// resonance as low as 10 Hz at 48 kHz (its `|k_1|` is `1 - 9e-7`).
+const K_MAX: f64 = 1.0 - 1e-7;
 
 /// Inverse of the reflection map, clamped so that it stays finite.
 fn to_u(k: f64) -> f64 {
@@ -472,6 +476,25 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(256))]
+        /// Every point of the search space is a stable filter, so no step of any search can
+        /// leave the unit circle, however large.
+        #[test]
+        fn every_parameter_vector_is_a_stable_filter(u in proptest::collection::vec(-60.0f64..60.0, 13)) {
+            let shape = Sos::new(vec![
+                Biquad { b: [1.0, 0.5, 0.2], a: [1.0, -1.0, 0.5] },
+                Biquad { b: [1.0, 0.5, 0.2], a: [1.0, 0.3, 0.2] },
+                Biquad { b: [1.0, 0.5, 0.0], a: [1.0, -0.5, 0.0] },
+            ]);
+            let layout = Layout::of(&shape);
+            proptest::prop_assert_eq!(layout.len(), u.len());
+            let sos = Sos::new(layout.unpack(&u));
+            proptest::prop_assert!(sos.is_stable(), "{:?}", sos);
+            proptest::prop_assert!(sos.poles().iter().all(|p| p.norm() < 1.0));
         }
     }
 
