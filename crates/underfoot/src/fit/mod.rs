@@ -187,7 +187,10 @@ pub fn fit_order(
             starts.push(("levi", stabilise(&s)));
         }
     }
-    if let Ok((b, a)) = levi::sanathanan_koerner(target, order, order, 3) {
+    if let Some(Ok((b, a))) = levi_ba
+        .clone()
+        .map(|start| levi::sanathanan_koerner(target, start, 3))
+    {
         if let Some(s) = roots::ba_to_sos(&b, &a) {
             starts.push(("sanathanan-koerner", stabilise(&s)));
         }
