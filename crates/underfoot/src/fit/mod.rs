@@ -11,11 +11,13 @@
 //!    [`vector_fit`](vector_fit::vector_fit): pole relocation in a partial-fraction basis,
 //!    which stays well conditioned for low resonances at high rates. Unstable poles of a
 //!    linear start are reflected into the unit circle.
-//! 2. **Refinements** ([`refine`](refine::refine)) of the start nearest the targets. The
-//!    damped Gauss-Newton output-error search of equation (2), over a parametrisation in
-//!    which every step is a stable filter; then the same search on both metrics at once
-//!    (linear and log magnitude errors, each scaled by its target), which is what the
-//!    metrics measure.
+//! 2. **Refinements** ([`refine`](refine::refine)), damped Gauss-Newton searches over a
+//!    parametrisation in which every step is a stable filter: the search on both metrics
+//!    at once (linear and log magnitude errors, each scaled by its target; what the metrics
+//!    measure) from the Sanathanan-Koerner and vector-fitting starts, in parallel; and from
+//!    the start nearest the targets, the output-error search of equation (2) followed by
+//!    the same two-metric search. Levi's start is refined through Sanathanan-Koerner, which
+//!    begins from it.
 //!
 //! All of it is evaluated on a log-spaced frequency grid of the band, so each octave counts
 //! the same (the weighting a perceptual fit needs; a linear grid spends most of its points
@@ -237,10 +239,17 @@ pub fn fit_order(
         .map(|(name, s)| (refine::objective_cost(s, target, objective), *name, s))
         .filter(|(c, _, _)| c.is_finite())
         .min_by(|x, y| x.0.total_cmp(&y.0));
+    // Sanathanan-Koerner starts from Levi's solution and lands in the same basin or a
+    // better one, so Levi's start is refined through it rather than again on its own.
+    let has_sk = starts.iter().any(|(n, _)| *n == "sanathanan-koerner");
+    let to_refine: Vec<&(&str, Sos)> = starts
+        .iter()
+        .filter(|(n, _)| !(has_sk && *n == "levi"))
+        .collect();
     // The balanced search from every start, as the linear starts land in different basins.
     // The searches are independent, so they run on their own threads.
     let (direct, chain) = std::thread::scope(|scope| {
-        let handles: Vec<_> = starts
+        let handles: Vec<_> = to_refine
             .iter()
             .map(|(_, s)| {
                 scope.spawn(move || refine::refine(s, target, objective, cfg.max_iterations))
@@ -265,7 +274,7 @@ pub fn fit_order(
             .collect();
         (direct, chain)
     });
-    for ((name, _), refined) in starts.iter().zip(direct) {
+    for ((name, _), refined) in to_refine.iter().zip(direct) {
         consider(&refined?.sos, format!("{name} + gauss-newton(balanced)"));
     }
     if let Some(chain) = chain {

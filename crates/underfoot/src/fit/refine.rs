@@ -213,6 +213,7 @@ fn evaluate(
     }
     let mut dlog = vec![Complex64::new(0.0, 0.0); np];
     let one = Complex64::new(1.0, 0.0);
+    let want_jac = jac.is_some();
     // The reflection map is the same at every frequency: evaluate it once per parameter.
     let kmap: Vec<(f64, f64)> = p.iter().map(|&u| to_k(u)).collect();
     for (k, &(z1, z2)) in powers.iter().enumerate() {
@@ -228,8 +229,13 @@ fn evaluate(
             } else {
                 bz
             };
-            hm *= bz / az;
-            let (ib, ia) = (bz.inv(), az.inv());
+            let ia = az.inv();
+            hm *= bz * ia;
+            // Residual-only evaluations (the trial steps) skip the derivatives.
+            if !want_jac {
+                continue;
+            }
+            let ib = bz.inv();
             for (j, zp) in [one, z1, z2].iter().take(nb).enumerate() {
                 dlog[col + j] = zp * ib;
             }
@@ -250,26 +256,32 @@ fn evaluate(
             }
         }
         let w = target.weight[k].sqrt();
+        // `hypot` is exact but slow; magnitudes here are far from overflow.
+        let want = h.norm_sqr().sqrt().max(1e-300);
         match objective {
             Objective::OutputError => {
-                let w = w / h.norm().max(1e-300);
+                let w = w / want;
                 let e = (hm - h) * w;
                 r.push(e.re);
                 r.push(e.im);
                 if let Some(j) = jac.as_deref_mut() {
+                    let mut column = j.column_mut(2 * k);
                     for (c, dl) in dlog.iter().enumerate() {
-                        let v = hm * dl * w;
-                        j[(c, 2 * k)] = v.re;
-                        j[(c, 2 * k + 1)] = v.im;
+                        column[c] = (hm * dl * w).re;
+                    }
+                    let mut column = j.column_mut(2 * k + 1);
+                    for (c, dl) in dlog.iter().enumerate() {
+                        column[c] = (hm * dl * w).im;
                     }
                 }
             }
             Objective::LogMagnitude => {
-                let mag = hm.norm().max(1e-300);
-                r.push(w * (mag / h.norm().max(1e-300)).ln());
+                let mag2 = hm.norm_sqr().max(1e-300);
+                r.push(w * 0.5 * (mag2 / (want * want)).ln());
                 if let Some(j) = jac.as_deref_mut() {
+                    let mut column = j.column_mut(k);
                     for (c, dl) in dlog.iter().enumerate() {
-                        j[(c, k)] = w * dl.re;
+                        column[c] = w * dl.re;
                     }
                 }
             }
@@ -277,14 +289,18 @@ fn evaluate(
                 lin_scale,
                 log_scale,
             } => {
-                let (mag, want) = (hm.norm().max(1e-300), h.norm().max(1e-300));
+                let mag = hm.norm_sqr().sqrt().max(1e-300);
                 let (wl, wg) = (w / lin_scale, w / log_scale);
                 r.push(wl * (mag - want));
                 r.push(wg * (mag / want).ln());
                 if let Some(j) = jac.as_deref_mut() {
+                    let mut column = j.column_mut(2 * k);
                     for (c, dl) in dlog.iter().enumerate() {
-                        j[(c, 2 * k)] = wl * mag * dl.re;
-                        j[(c, 2 * k + 1)] = wg * dl.re;
+                        column[c] = wl * mag * dl.re;
+                    }
+                    let mut column = j.column_mut(2 * k + 1);
+                    for (c, dl) in dlog.iter().enumerate() {
+                        column[c] = wg * dl.re;
                     }
                 }
             }
