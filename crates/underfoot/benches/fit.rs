@@ -61,11 +61,11 @@ fn synthetic() -> Vec<Recording> {
         .collect()
 }
 
-/// Gravel's search stops at the bound (one fit); concrete's reaches the targets and
-/// bisects (about five fits): the two ends of the automatic search.
+/// Gravel's search stops at the bound (one fit); concrete's and snow's reach the targets
+/// and bisect (five fits, snow's all at high orders): the two ends of the automatic search.
 fn bench(c: &mut Criterion) {
     let cfg = BuildConfig::default();
-    let mut materials: Vec<(String, Vec<Recording>)> = ["gravel", "hard"]
+    let mut materials: Vec<(String, Vec<Recording>)> = ["gravel", "hard", "snow"]
         .iter()
         .filter_map(|m| shared(m).map(|r| ((*m).to_string(), r)))
         .collect();
