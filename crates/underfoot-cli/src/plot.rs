@@ -251,10 +251,14 @@ fn draw_panel<DB: DrawingBackend>(
         }
     }
 
+    // plotters puts log-axis key points at powers of ten and their multiples only from the
+    // first power of ten inside the range; starting the axis at the decade below the band
+    // keeps the band's lowest frequencies labelled (20 and 50 Hz for the default band).
+    let axis_lo = 10f64.powf(lo.log10().floor());
     let mut chart = ChartBuilder::on(&area.margin(TITLE_HEIGHT, 8, 8, 18))
         .x_label_area_size(44)
         .y_label_area_size(58)
-        .build_cartesian_2d((lo..hi).log_scale(), floor..top)?;
+        .build_cartesian_2d((axis_lo..hi).log_scale(), floor..top)?;
     chart
         .configure_mesh()
         .x_desc("frequency (Hz)")
