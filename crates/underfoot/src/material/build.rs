@@ -9,6 +9,7 @@ use std::time::Instant;
 
 use crate::analysis::{AnalysisConfig, AnalysisError, MeasuredResponse, measure};
 use crate::fit::{FitConfig, FitError, MetricGrid, Metrics, Target, fit};
+use crate::material::library::validate_name;
 use crate::material::{FilterCoefficients, FitRecord, MaterialModel, SourceFile};
 use crate::recording::Recording;
 
@@ -50,9 +51,14 @@ pub enum Progress {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum BuildError {
-    /// The material name is empty or not printable.
-    #[error("invalid material name {0:?}: use letters, digits, '-', '_' or '.'")]
-    InvalidName(String),
+    /// The material name breaks [`validate_name`](crate::material::library::validate_name).
+    #[error("invalid material name {name:?}: {reason}")]
+    InvalidName {
+        /// The name given.
+        name: String,
+        /// What is wrong with it.
+        reason: String,
+    },
     /// The recordings could not be analysed.
     #[error(transparent)]
     Analysis(#[from] AnalysisError),
@@ -96,9 +102,10 @@ pub fn build_material_with_report(
     cfg: &BuildConfig,
     progress: &mut dyn FnMut(&Progress),
 ) -> Result<(MaterialModel, BuildReport), BuildError> {
-    if !valid_name(name) {
-        return Err(BuildError::InvalidName(name.to_string()));
-    }
+    validate_name(name).map_err(|reason| BuildError::InvalidName {
+        name: name.to_string(),
+        reason,
+    })?;
     let started = Instant::now();
     let a = &cfg.analysis;
     let measured = measure(recordings, a)?;
@@ -158,13 +165,4 @@ pub fn build_material_with_report(
             trials: outcome.trials,
         },
     ))
-}
-
-/// Names are what a file name, a CLI argument and a JSON key can all hold without quoting.
-fn valid_name(name: &str) -> bool {
-    !name.is_empty()
-        && name.len() <= 64
-        && name
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
 }

@@ -403,7 +403,12 @@ pub fn validate_model(m: &MaterialModel) -> Result<(), String> {
     Ok(())
 }
 
-/// Checks a material name: non-empty, only letters, digits, `-`, `_` and `.`.
+/// The longest material name, in bytes.
+pub const MAX_NAME_LEN: usize = 64;
+
+/// Checks a material name: 1 to [`MAX_NAME_LEN`] ASCII letters, digits, `-`, `_` and `.`.
+///
+/// The one rule for names, whether they come from `fit`, a library file or the API.
 ///
 /// # Errors
 /// What is wrong with the name, as a sentence.
@@ -411,11 +416,17 @@ pub fn validate_name(name: &str) -> Result<(), String> {
     if name.is_empty() {
         return Err("name is empty".to_string());
     }
+    if name.len() > MAX_NAME_LEN {
+        return Err(format!(
+            "name is {} bytes long, more than {MAX_NAME_LEN}",
+            name.len()
+        ));
+    }
     // Names end up as command-line arguments and file names; keep them to characters
     // that need no quoting anywhere.
     if let Some(c) = name
         .chars()
-        .find(|&c| !(c.is_alphanumeric() || matches!(c, '-' | '_' | '.')))
+        .find(|&c| !(c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.')))
     {
         return Err(format!(
             "name contains {c:?}: use letters, digits, '-', '_' or '.'"
@@ -717,6 +728,8 @@ mod tests {
     fn invalid_names_are_rejected() {
         assert!(invalid_reason(model("")).contains("name is empty"));
         assert!(invalid_reason(model("a b")).contains("name contains ' '"));
+        assert!(invalid_reason(model("grès")).contains("name contains 'è'"));
+        assert!(invalid_reason(model(&"g".repeat(65))).contains("more than 64"));
         let lib = library(&["a", "b", "a"]);
         match Library::from_json(&lib.to_json(), "o") {
             Err(LibraryError::Invalid {
