@@ -208,6 +208,13 @@ impl AnalysisConfig {
         Ok(())
     }
 
+    /// Checks the settings and designs the trend filter: the set-up every entry point shares.
+    fn prepare(&self) -> Result<Sos, AnalysisError> {
+        self.validate()?;
+        self.trend_filter()
+            .map_err(|source| AnalysisError::InvalidConfig(source.to_string()))
+    }
+
     /// The zero-phase trend filter of step 3.
     fn trend_filter(&self) -> Result<Sos, SignalError> {
         let lo = Hz(self.band.lo.0 / 2.0);
@@ -225,11 +232,7 @@ impl AnalysisConfig {
 /// # Errors
 /// [`AnalysisError::Conditioning`] when a step cannot run on this recording (too short).
 pub fn condition(rec: &Recording, cfg: &AnalysisConfig) -> Result<Vec<f64>, AnalysisError> {
-    cfg.validate()?;
-    let trend = cfg
-        .trend_filter()
-        .map_err(|source| AnalysisError::InvalidConfig(source.to_string()))?;
-    condition_with(rec, cfg, &trend)
+    condition_with(rec, cfg, &cfg.prepare()?)
 }
 
 fn condition_with(
@@ -270,13 +273,10 @@ pub fn measure(
     recordings: &[Recording],
     cfg: &AnalysisConfig,
 ) -> Result<MeasuredResponse, AnalysisError> {
-    cfg.validate()?;
+    let trend = cfg.prepare()?;
     if recordings.is_empty() {
         return Err(AnalysisError::NoRecordings);
     }
-    let trend = cfg
-        .trend_filter()
-        .map_err(|source| AnalysisError::InvalidConfig(source.to_string()))?;
     let strike_len = cfg.rate.samples_in(cfg.strike_length).max(8);
     let pre = cfg.rate.samples_in(cfg.pre_onset);
     let n_fft = (4 * strike_len).next_power_of_two();

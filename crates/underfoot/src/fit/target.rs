@@ -83,7 +83,7 @@ impl Target {
         let freqs = band.log_grid(points);
         let response = freqs
             .iter()
-            .map(|f| interpolate_complex(&h, bin_hz, f.0))
+            .map(|f| interpolate_bins(&h, bin_hz, f.0))
             .collect();
         Self::from_response(rate, &freqs, response)
     }
@@ -156,24 +156,23 @@ pub fn minimum_phase_spectrum(
     Ok(out.into_iter().map(Complex64::exp).collect())
 }
 
-/// Linear interpolation of a bin-sampled spectrum at `f` hertz.
-fn interpolate_complex(h: &[Complex64], bin_hz: f64, f: f64) -> Complex64 {
-    let x = (f / bin_hz).clamp(0.0, (h.len() - 1) as f64);
-    let i = (x.floor() as usize).min(h.len() - 2);
-    let t = x - i as f64;
-    h[i] * (1.0 - t) + h[i + 1] * t
-}
-
-/// Linear interpolation of a bin-sampled magnitude at `f` hertz.
+/// Linear interpolation of a bin-sampled spectrum (bin `k` at `k * bin_hz`) at `f`
+/// hertz, clamped to the first and last bins. Zero for an empty spectrum.
 #[must_use]
-pub fn interpolate_bins(mag: &[f64], bin_hz: f64, f: f64) -> f64 {
-    if mag.len() < 2 {
-        return mag.first().copied().unwrap_or(0.0);
+pub fn interpolate_bins<T>(bins: &[T], bin_hz: f64, f: f64) -> T
+where
+    T: Copy + Default + std::ops::Add<Output = T> + std::ops::Mul<f64, Output = T>,
+{
+    match bins {
+        [] => T::default(),
+        [only] => *only,
+        _ => {
+            let x = (f / bin_hz).clamp(0.0, (bins.len() - 1) as f64);
+            let i = (x.floor() as usize).min(bins.len() - 2);
+            let t = x - i as f64;
+            bins[i] * (1.0 - t) + bins[i + 1] * t
+        }
     }
-    let x = (f / bin_hz).clamp(0.0, (mag.len() - 1) as f64);
-    let i = (x.floor() as usize).min(mag.len() - 2);
-    let t = x - i as f64;
-    mag[i] * (1.0 - t) + mag[i + 1] * t
 }
 
 #[cfg(test)]
