@@ -7,39 +7,15 @@
 
 mod common;
 
-use std::path::PathBuf;
-
 use underfoot::material::build::{BuildConfig, build_material_with_report};
 use underfoot::recording::{Recording, read};
 
-fn material_dirs() -> Option<Vec<(String, Vec<PathBuf>)>> {
-    let root = common::footsteps_dir()?;
-    let mut out = Vec::new();
-    let mut dirs: Vec<_> = std::fs::read_dir(&root)
-        .ok()?
-        .filter_map(Result::ok)
-        .map(|e| e.path())
-        .collect();
-    dirs.sort();
-    for dir in dirs.into_iter().filter(|p| p.is_dir()) {
-        let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
-            .ok()?
-            .filter_map(Result::ok)
-            .map(|e| e.path())
-            .filter(|p| p.extension().is_some_and(|e| e == "ogg"))
-            .collect();
-        files.sort();
-        let name = dir.file_name()?.to_string_lossy().into_owned();
-        out.push((name, files));
-    }
-    Some(out)
-}
-
 #[test]
 fn every_real_material_fits_within_one_db() {
-    let Some(materials) = material_dirs() else {
+    let Some(root) = common::footsteps_dir() else {
         return;
     };
+    let materials = common::footsteps_by_material(&root);
     assert!(
         materials.len() >= 5,
         "expected the shared footstep materials, found {}",

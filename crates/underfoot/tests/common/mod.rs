@@ -27,21 +27,37 @@ pub fn footsteps_dir() -> Option<PathBuf> {
     None
 }
 
-/// Every `*.ogg` file one level down in `dir` (one folder per material), sorted.
-pub fn footstep_files(dir: &std::path::Path) -> Vec<PathBuf> {
-    let mut files = Vec::new();
+/// The `*.ogg` recordings of each material folder in `dir`, by material name, both sorted.
+pub fn footsteps_by_material(dir: &std::path::Path) -> Vec<(String, Vec<PathBuf>)> {
+    let mut materials = Vec::new();
     for material in std::fs::read_dir(dir).expect("footsteps dir is readable") {
         let material = material.expect("dir entry").path();
         if !material.is_dir() {
             continue;
         }
-        for f in std::fs::read_dir(&material).expect("material dir is readable") {
-            let f = f.expect("dir entry").path();
-            if f.extension().is_some_and(|e| e == "ogg") {
-                files.push(f);
-            }
-        }
+        let mut files: Vec<PathBuf> = std::fs::read_dir(&material)
+            .expect("material dir is readable")
+            .map(|f| f.expect("dir entry").path())
+            .filter(|f| f.extension().is_some_and(|e| e == "ogg"))
+            .collect();
+        files.sort();
+        let name = material
+            .file_name()
+            .expect("a folder has a name")
+            .to_string_lossy()
+            .into_owned();
+        materials.push((name, files));
     }
+    materials.sort();
+    materials
+}
+
+/// Every `*.ogg` file one level down in `dir` (one folder per material), sorted.
+pub fn footstep_files(dir: &std::path::Path) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = footsteps_by_material(dir)
+        .into_iter()
+        .flat_map(|(_, files)| files)
+        .collect();
     files.sort();
     files
 }
