@@ -51,7 +51,7 @@ pub enum Progress {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum BuildError {
-    /// The material name breaks [`validate_name`](crate::material::library::validate_name).
+    /// The material name breaks [`validate_name`].
     #[error("invalid material name {name:?}: {reason}")]
     InvalidName {
         /// The name given.
