@@ -62,8 +62,13 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 pub mod analysis;
+pub mod engine;
 pub mod fit;
+pub mod force;
+pub mod io;
 pub mod material;
 pub mod recording;
+pub mod safety;
 pub mod signal;
+pub mod synthesis;
 pub mod units;

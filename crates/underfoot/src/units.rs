@@ -99,6 +99,28 @@ impl fmt::Display for Decibels {
     }
 }
 
+/// A force in newtons (a vertical ground-reaction force, or one sensor's share of it).
+#[derive(Debug, Clone, Copy, PartialEq, PartialOrd, Default, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct Newtons(pub f64);
+
+impl Newtons {
+    /// Standard gravity, for body weight from mass.
+    pub const STANDARD_GRAVITY: f64 = 9.806_65;
+
+    /// The weight of a mass of `kg` kilograms at standard gravity.
+    #[must_use]
+    pub fn weight_of(kg: f64) -> Self {
+        Self(kg * Self::STANDARD_GRAVITY)
+    }
+}
+
+impl fmt::Display for Newtons {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} N", self.0)
+    }
+}
+
 /// A frequency band `[lo, hi]` in hertz.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(into = "[f64; 2]", from = "[f64; 2]")]

@@ -1,0 +1,1 @@
+//! Synthesis (being written: see issue 3).
