@@ -1,1 +1,11 @@
-//! Synthesis (being written: see issue 3).
+//! Synthesis: a material's filter, played step by step.
+//!
+//! | module | what it does |
+//! |---|---|
+//! | [`modal`] | a fitted filter as a sum of modes, and impulse-invariant resampling to the audio rate |
+//! | [`voice`] | the real-time voice: modes, per-step numerator perturbation, post filter, calibrated gain |
+pub mod modal;
+pub mod voice;
+
+pub use modal::{ModalError, ModalFilter, Mode};
+pub use voice::{PreparedMaterial, Voice, VoiceConfig, VoiceError};
