@@ -1,1 +1,281 @@
-//! Safety (being written: see issue 3).
+//! Safety: what stands between the synthesis and a person's skin.
+//!
+//! Every output path of the engine ends in these, in this order:
+//!
+//! 1. **Non-finite guard.** A voice that produces a NaN or an infinity resets its state and
+//!    writes silence ([`Voice::process`](crate::synthesis::Voice::process)); the
+//!    [`Limiter`] checks again, so nothing non-finite reaches a device whatever happened
+//!    upstream. Every such event is counted and reported.
+//! 2. **Watchdog** ([`Watchdog`]): when a channel's input stops (a cable pulled, a sender
+//!    crashed), its output fades to silence instead of ringing on or freezing.
+//! 3. **Fader** ([`Fader`]): start-up and shut-down ramp the whole output in and out, so
+//!    the actuator never sees a step (a pop).
+//! 4. **Hard limiter** ([`Limiter`]): no sample above the ceiling gets through, however
+//!    loud the filter: gain reduction is instantaneous (no look-ahead, so no latency), the
+//!    gain recovers smoothly, and a final clamp guards against rounding.
+
+use crate::units::{Decibels, SampleRate, Seconds};
+
+/// A peak limiter with an absolute ceiling.
+///
+/// The gain `g` follows `min(1, c / |x|)` down at once and recovers towards 1 with time
+/// constant `release`; the output is `clamp(g x, -c, c)`. Instant attack distorts the
+/// first cycle of an overload instead of letting it through: on skin, a clipped peak is
+/// the lesser harm.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Limiter {
+    ceiling: f32,
+    gain: f32,
+    release: f32,
+}
+
+/// What a limiter did to a block.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LimiterReport {
+    /// Samples whose gain was reduced.
+    pub limited: u32,
+    /// Non-finite samples replaced by silence.
+    pub non_finite: u32,
+}
+
+impl Limiter {
+    /// A limiter with `ceiling` relative to full scale (e.g. -6 dB: 0.5).
+    #[must_use]
+    pub fn new(ceiling: Decibels, release: Seconds, rate: SampleRate) -> Self {
+        Self {
+            ceiling: ceiling.to_amplitude() as f32,
+            gain: 1.0,
+            release: (1.0 - (-1.0 / (release.0.max(1e-6) * rate.hz())).exp()) as f32,
+        }
+    }
+
+    /// The ceiling as an amplitude.
+    #[must_use]
+    pub fn ceiling(&self) -> f32 {
+        self.ceiling
+    }
+
+    /// Limits one sample.
+    #[inline]
+    pub fn tick(&mut self, x: f32, report: &mut LimiterReport) -> f32 {
+        if !x.is_finite() {
+            report.non_finite += 1;
+            return 0.0;
+        }
+        self.gain += (1.0 - self.gain) * self.release;
+        let peak = x.abs() * self.gain;
+        if peak > self.ceiling {
+            self.gain = self.ceiling / x.abs();
+            report.limited += 1;
+        }
+        (x * self.gain).clamp(-self.ceiling, self.ceiling)
+    }
+}
+
+/// Watchdog settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WatchdogConfig {
+    /// How long without input before fading (default 50 ms: sensors report every 1-10 ms).
+    pub timeout: Seconds,
+    /// How long the fade to silence takes (default 50 ms, so silence within 100 ms).
+    pub fade: Seconds,
+    /// How long an explicit step event keeps the channel alive, for sources that send
+    /// steps but no force (default 1 s: the ring of one step).
+    pub step_hold: Seconds,
+    /// How long the gain takes to come back when input resumes (default 1 ms, so a
+    /// step's onset is not lost).
+    pub recover: Seconds,
+}
+
+impl Default for WatchdogConfig {
+    fn default() -> Self {
+        Self {
+            timeout: Seconds(0.05),
+            fade: Seconds(0.05),
+            step_hold: Seconds(1.0),
+            recover: Seconds(0.001),
+        }
+    }
+}
+
+/// Fades a channel out when its input stops. Per sample, never allocates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Watchdog {
+    timeout: u64,
+    step_hold: u64,
+    fall: f32,
+    rise: f32,
+    idle: u64,
+    allowed: u64,
+    gain: f32,
+    /// Times the watchdog has faded the channel out.
+    pub trips: u64,
+}
+
+impl Watchdog {
+    /// A watchdog that starts silent (no input yet).
+    #[must_use]
+    pub fn new(config: &WatchdogConfig, rate: SampleRate) -> Self {
+        let samples = |t: Seconds| rate.samples_in(t).max(1) as u64;
+        Self {
+            timeout: samples(config.timeout),
+            step_hold: samples(config.step_hold),
+            fall: 1.0 / samples(config.fade) as f32,
+            rise: 1.0 / samples(config.recover) as f32,
+            idle: 1,
+            allowed: 0,
+            gain: 0.0,
+            trips: 0,
+        }
+    }
+
+    /// Input arrived (a force reading).
+    pub fn feed(&mut self) {
+        self.extend(self.timeout);
+    }
+
+    /// An explicit step arrived: stay alive for the step's ring.
+    pub fn feed_step(&mut self) {
+        self.extend(self.step_hold);
+    }
+
+    /// Keep alive for at least `hold` from now, never shortening a longer hold.
+    fn extend(&mut self, hold: u64) {
+        let remaining = self.allowed.saturating_sub(self.idle);
+        self.allowed = remaining.max(hold);
+        self.idle = 0;
+    }
+
+    /// The gain for the next sample.
+    #[inline]
+    pub fn tick(&mut self) -> f32 {
+        self.idle = self.idle.saturating_add(1);
+        if self.idle > self.allowed {
+            if self.gain > 0.0 {
+                self.gain = (self.gain - self.fall).max(0.0);
+                if self.gain == 0.0 {
+                    self.trips += 1;
+                }
+            }
+        } else {
+            self.gain = (self.gain + self.rise).min(1.0);
+        }
+        self.gain
+    }
+
+    /// Whether the channel is silenced.
+    #[must_use]
+    pub fn is_silent(&self) -> bool {
+        self.gain == 0.0
+    }
+}
+
+/// A linear ramp between silence and full gain, for start-up and shut-down.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fader {
+    gain: f32,
+    target: f32,
+    step: f32,
+}
+
+impl Fader {
+    /// A fader that starts silent and ramps to full over `time`.
+    #[must_use]
+    pub fn fade_in(time: Seconds, rate: SampleRate) -> Self {
+        Self {
+            gain: 0.0,
+            target: 1.0,
+            step: 1.0 / rate.samples_in(time).max(1) as f32,
+        }
+    }
+
+    /// Ramp to silence.
+    pub fn fade_out(&mut self) {
+        self.target = 0.0;
+    }
+
+    /// The gain for the next sample.
+    #[inline]
+    pub fn tick(&mut self) -> f32 {
+        if self.gain < self.target {
+            self.gain = (self.gain + self.step).min(self.target);
+        } else if self.gain > self.target {
+            self.gain = (self.gain - self.step).max(self.target);
+        }
+        self.gain
+    }
+
+    /// Whether a fade-out has finished.
+    #[must_use]
+    pub fn is_silent(&self) -> bool {
+        self.target == 0.0 && self.gain == 0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::signal::noise::SplitMix64;
+
+    #[test]
+    fn limiter_never_exceeds_the_ceiling_and_blocks_non_finite() {
+        let rate = SampleRate(48_000);
+        let mut lim = Limiter::new(Decibels(-6.0), Seconds(0.05), rate);
+        let c = lim.ceiling();
+        let mut rng = SplitMix64::new(9);
+        let mut report = LimiterReport::default();
+        for n in 0..200_000 {
+            // Wild input: huge spikes, tiny values, infinities and NaN.
+            let x = match n % 1000 {
+                0 => f32::INFINITY,
+                1 => f32::NAN,
+                2 => 1e30,
+                _ => (rng.normal() * 10f64.powf(rng.symmetric() * 4.0)) as f32,
+            };
+            let y = lim.tick(x, &mut report);
+            assert!(y.is_finite() && y.abs() <= c, "{x} -> {y}");
+        }
+        assert_eq!(report.non_finite, 400);
+        assert!(report.limited > 0);
+    }
+
+    #[test]
+    fn limiter_is_transparent_below_the_ceiling() {
+        let rate = SampleRate(48_000);
+        let mut lim = Limiter::new(Decibels(-6.0), Seconds(0.05), rate);
+        let mut report = LimiterReport::default();
+        for n in 0..1000 {
+            let x = 0.4 * (n as f32 * 0.05).sin();
+            assert_eq!(lim.tick(x, &mut report), x);
+        }
+        assert_eq!(report.limited, 0);
+    }
+
+    #[test]
+    fn watchdog_fades_to_silence_within_100_ms_of_the_last_input() {
+        let rate = SampleRate(48_000);
+        let mut wd = Watchdog::new(&WatchdogConfig::default(), rate);
+        for _ in 0..480 {
+            wd.feed();
+            wd.tick();
+        }
+        assert_eq!(wd.tick(), 1.0);
+        let silent_after = (0..48_000).position(|_| wd.tick() == 0.0).unwrap();
+        assert!(silent_after <= 4800, "{silent_after} samples");
+        assert!(silent_after >= 2400, "not before the timeout");
+        assert_eq!(wd.trips, 1);
+        wd.feed();
+        assert!(wd.tick() > 0.0);
+    }
+
+    #[test]
+    fn fader_ramps_in_and_out() {
+        let rate = SampleRate(1000);
+        let mut f = Fader::fade_in(Seconds(0.01), rate);
+        let up: Vec<f32> = (0..12).map(|_| f.tick()).collect();
+        assert!(up.windows(2).all(|w| w[1] >= w[0]) && up[9] == 1.0);
+        f.fade_out();
+        let down: Vec<f32> = (0..12).map(|_| f.tick()).collect();
+        assert!(down.windows(2).all(|w| w[1] <= w[0]) && f.is_silent());
+    }
+}
