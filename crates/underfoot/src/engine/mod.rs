@@ -1,6 +1,632 @@
 //! The real-time engine: N channels, force in, vibration out.
 //!
-//! (Being written: see issue 3.)
+//! [`build`] splits the engine in two halves that talk only through lock-free
+//! single-producer single-consumer queues ([`rtrb`]) and atomics:
+//!
+//! - the [`Engine`] lives on the audio thread. [`Engine::process`] renders into the buffer
+//!   it is given and never allocates, locks, blocks or panics;
+//! - the [`Controller`] lives anywhere else. It sends [`TimedEvent`]s (force readings,
+//!   steps, material changes) and new materials, reads [`Telemetry`], and frees the
+//!   materials the engine has retired, so that no deallocation happens on the audio
+//!   thread either.
+//!
+//! Every material of the bank is prepared before the engine starts; changing a channel's
+//! material is a slot index, and the voice copies the coefficients into its own fixed
+//! arrays. A replaced material goes back over the retire queue.
+//!
+//! # Timing
+//!
+//! An event with a frame (`TimedEvent::at`) takes effect at exactly that sample, whatever
+//! the block size: the block is split there. An event without one takes effect at the
+//! start of the next block. So an offline render is identical for every block size, and
+//! a live step's impulse reaches the output in the first block rendered after its reading
+//! arrives.
+//!
+//! # Output
+//!
+//! Channel `c` goes to device channel `c`; device channels beyond the engine's are zero.
+//! Each output channel has its own [`Limiter`]; a [`Fader`] ramps everything in at start
+//! and out at [`Controller::stop`].
+
+mod channel;
 pub mod event;
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
+
 pub use event::{Event, TimedEvent};
+
+use crate::force::drive::{DriveKind, Polarity};
+use crate::force::steps::DetectorConfig;
+use crate::material::Library;
+use crate::safety::{Fader, Limiter, LimiterReport, WatchdogConfig};
+use crate::synthesis::{PreparedMaterial, VoiceConfig, VoiceError};
+use crate::units::{Decibels, Hz, Newtons, SampleRate, Seconds};
+use channel::Channel;
+
+/// Everything the engine is set up with.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EngineConfig {
+    /// Audio rate.
+    pub rate: SampleRate,
+    /// Number of channels (actuators), each with its own input and material.
+    pub channels: usize,
+    /// The largest block rendered in one go; larger device buffers are split.
+    pub max_block: usize,
+    /// What drives the filters.
+    pub drive: DriveKind,
+    /// Which half of `dF/dt` the `ForceRate` drive keeps.
+    pub polarity: Polarity,
+    /// Standard deviation of the per-step numerator perturbation (default 0.01).
+    pub perturbation: f32,
+    /// Seed of the perturbation; channel `c` uses a stream derived from it.
+    pub seed: u64,
+    /// Nominal body weight the force drives normalise by (default 70 kg).
+    pub nominal_weight: Newtons,
+    /// About how often sensor readings arrive (sets the force ramp; default 500 Hz).
+    pub sensor_rate: Hz,
+    /// Heel-strike detection.
+    pub detector: DetectorConfig,
+    /// Input watchdog.
+    pub watchdog: WatchdogConfig,
+    /// Output gain before the limiter (default 0 dB).
+    pub gain: Decibels,
+    /// Limiter ceiling relative to full scale (default -6 dB).
+    pub ceiling: Decibels,
+    /// Limiter release (default 50 ms).
+    pub release: Seconds,
+    /// Material crossfade (default 20 ms).
+    pub crossfade: Seconds,
+    /// Start-up and shut-down fade (default 10 ms).
+    pub fade: Seconds,
+    /// Capacity of the event queue (default 8192).
+    pub queue_capacity: usize,
+}
+
+impl Default for EngineConfig {
+    fn default() -> Self {
+        Self {
+            rate: SampleRate(48_000),
+            channels: 1,
+            max_block: 512,
+            drive: DriveKind::Impulse,
+            polarity: Polarity::Loading,
+            perturbation: 0.01,
+            seed: 0x5EED,
+            nominal_weight: Newtons::weight_of(70.0),
+            sensor_rate: Hz(500.0),
+            detector: DetectorConfig::default(),
+            watchdog: WatchdogConfig::default(),
+            gain: Decibels(0.0),
+            ceiling: Decibels(-6.0),
+            release: Seconds(0.05),
+            crossfade: Seconds(0.02),
+            fade: Seconds(0.01),
+            queue_capacity: 8192,
+        }
+    }
+}
+
+/// Why an engine cannot be built or a command not sent.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum EngineError {
+    /// A setting is out of range.
+    #[error("invalid engine setting: {0}")]
+    InvalidConfig(String),
+    /// A material cannot be played.
+    #[error(transparent)]
+    Voice(#[from] VoiceError),
+    /// A material name is not in the bank.
+    #[error("no material {name:?} in the engine's bank (available: {available})")]
+    UnknownMaterial {
+        /// The name asked for.
+        name: String,
+        /// The names there are.
+        available: String,
+    },
+    /// The event queue is full: the audio thread is not running or not keeping up.
+    #[error("the engine's event queue is full (is the audio device running?)")]
+    QueueFull,
+}
+
+/// The materials an engine can play, prepared for its rate. Built off the audio thread.
+#[derive(Debug, Clone, Default)]
+pub struct MaterialBank {
+    materials: Vec<PreparedMaterial>,
+}
+
+impl MaterialBank {
+    /// Prepares every material of `library` for `rate`, calibrating the force drives with
+    /// `nominal_step` (total force of one nominal step at `rate`, see
+    /// [`gait::nominal_step`](crate::force::gait::nominal_step)) for a walker of `weight`.
+    ///
+    /// # Errors
+    /// The first material that cannot be played.
+    pub fn prepare(
+        library: &Library,
+        rate: SampleRate,
+        voice: &VoiceConfig,
+        nominal_step: &[f64],
+        weight: Newtons,
+    ) -> Result<Self, VoiceError> {
+        let materials = library
+            .materials
+            .iter()
+            .map(|m| {
+                let mut p = PreparedMaterial::prepare(m, rate, voice)?;
+                p.calibrate(nominal_step, weight);
+                Ok(p)
+            })
+            .collect::<Result<Vec<_>, VoiceError>>()?;
+        Ok(Self { materials })
+    }
+
+    /// A bank of already prepared materials.
+    #[must_use]
+    pub fn from_prepared(materials: Vec<PreparedMaterial>) -> Self {
+        Self { materials }
+    }
+
+    /// The materials' names, in slot order.
+    #[must_use]
+    pub fn names(&self) -> Vec<String> {
+        self.materials.iter().map(|m| m.name.clone()).collect()
+    }
+
+    /// The slot of a material.
+    ///
+    /// # Errors
+    /// [`EngineError::UnknownMaterial`] listing the names there are.
+    pub fn slot(&self, name: &str) -> Result<u16, EngineError> {
+        self.materials
+            .iter()
+            .position(|m| m.name == name)
+            .map(|i| i as u16)
+            .ok_or_else(|| EngineError::UnknownMaterial {
+                name: name.to_string(),
+                available: self.names().join(", "),
+            })
+    }
+
+    /// The prepared materials.
+    #[must_use]
+    pub fn materials(&self) -> &[PreparedMaterial] {
+        &self.materials
+    }
+}
+
+/// Counters the engine publishes, readable from any thread.
+#[derive(Debug, Default)]
+pub struct Telemetry {
+    frames: AtomicU64,
+    strikes: AtomicU64,
+    non_finite: AtomicU64,
+    limited: AtomicU64,
+    rejected: AtomicU64,
+    late: AtomicU64,
+    dropped: AtomicU64,
+    watchdog_trips: AtomicU64,
+    peak_bits: AtomicU32,
+    stopped: AtomicBool,
+}
+
+/// A snapshot of [`Telemetry`].
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TelemetrySnapshot {
+    /// Frames rendered.
+    pub frames: u64,
+    /// Heel strikes (detected or sent).
+    pub strikes: u64,
+    /// Non-finite samples caught (voice resets plus limiter catches).
+    pub non_finite: u64,
+    /// Samples the limiter reduced.
+    pub limited: u64,
+    /// Events rejected on arrival (non-finite force, channel or slot out of range).
+    pub rejected: u64,
+    /// Timed events that arrived after their frame had been rendered (applied late).
+    pub late: u64,
+    /// Events dropped because the pending list was full.
+    pub dropped: u64,
+    /// Times a channel's watchdog faded it out.
+    pub watchdog_trips: u64,
+    /// Largest absolute output sample so far.
+    pub peak: f32,
+    /// Whether the shut-down fade has finished.
+    pub stopped: bool,
+}
+
+impl Telemetry {
+    fn count_strike(&self) {
+        self.strikes.fetch_add(1, Ordering::Relaxed);
+    }
+
+    fn count_rejected(&self) {
+        self.rejected.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// A snapshot of every counter.
+    #[must_use]
+    pub fn snapshot(&self) -> TelemetrySnapshot {
+        TelemetrySnapshot {
+            frames: self.frames.load(Ordering::Relaxed),
+            strikes: self.strikes.load(Ordering::Relaxed),
+            non_finite: self.non_finite.load(Ordering::Relaxed),
+            limited: self.limited.load(Ordering::Relaxed),
+            rejected: self.rejected.load(Ordering::Relaxed),
+            late: self.late.load(Ordering::Relaxed),
+            dropped: self.dropped.load(Ordering::Relaxed),
+            watchdog_trips: self.watchdog_trips.load(Ordering::Relaxed),
+            peak: f32::from_bits(self.peak_bits.load(Ordering::Relaxed)),
+            stopped: self.stopped.load(Ordering::Relaxed),
+        }
+    }
+}
+
+enum Command {
+    Event(TimedEvent),
+    Replace(u16, Box<PreparedMaterial>),
+    Stop,
+}
+
+/// The control half: sends events and materials, reads telemetry, frees retired materials.
+pub struct Controller {
+    commands: rtrb::Producer<Command>,
+    retired: rtrb::Consumer<Box<PreparedMaterial>>,
+    telemetry: Arc<Telemetry>,
+    names: Vec<String>,
+    rate: SampleRate,
+}
+
+impl Controller {
+    /// Sends an event.
+    ///
+    /// # Errors
+    /// [`EngineError::QueueFull`] if the engine has not drained the queue.
+    pub fn send(&mut self, event: TimedEvent) -> Result<(), EngineError> {
+        self.commands
+            .push(Command::Event(event))
+            .map_err(|_| EngineError::QueueFull)
+    }
+
+    /// Replaces the material in `slot` (channels playing it crossfade to the new one at
+    /// their next material change; use an [`Event::Material`] to switch). The old one
+    /// comes back through [`collect`](Self::collect).
+    ///
+    /// # Errors
+    /// [`EngineError::QueueFull`], or [`EngineError::InvalidConfig`] for a slot beyond
+    /// the bank.
+    pub fn replace_material(
+        &mut self,
+        slot: u16,
+        material: PreparedMaterial,
+    ) -> Result<(), EngineError> {
+        if usize::from(slot) >= self.names.len() {
+            return Err(EngineError::InvalidConfig(format!(
+                "slot {slot} is beyond the bank of {}",
+                self.names.len()
+            )));
+        }
+        self.names[usize::from(slot)] = material.name.clone();
+        self.commands
+            .push(Command::Replace(slot, Box::new(material)))
+            .map_err(|_| EngineError::QueueFull)
+    }
+
+    /// Starts the shut-down fade; [`TelemetrySnapshot::stopped`] turns true when it ends.
+    ///
+    /// # Errors
+    /// [`EngineError::QueueFull`].
+    pub fn stop(&mut self) -> Result<(), EngineError> {
+        self.commands
+            .push(Command::Stop)
+            .map_err(|_| EngineError::QueueFull)
+    }
+
+    /// Frees the materials the engine has retired. Call now and then from a non-audio
+    /// thread.
+    pub fn collect(&mut self) -> usize {
+        let mut n = 0;
+        while self.retired.pop().is_ok() {
+            n += 1;
+        }
+        n
+    }
+
+    /// The counters.
+    #[must_use]
+    pub fn telemetry(&self) -> TelemetrySnapshot {
+        self.telemetry.snapshot()
+    }
+
+    /// A shared handle on the counters, for a monitoring thread.
+    #[must_use]
+    pub fn telemetry_handle(&self) -> Arc<Telemetry> {
+        Arc::clone(&self.telemetry)
+    }
+
+    /// The bank's material names, in slot order.
+    #[must_use]
+    pub fn material_names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// The engine's rate.
+    #[must_use]
+    pub fn rate(&self) -> SampleRate {
+        self.rate
+    }
+}
+
+/// The audio half. Move it into the audio callback.
+pub struct Engine {
+    rate: SampleRate,
+    channels: Vec<Channel>,
+    bank: Vec<Box<PreparedMaterial>>,
+    limiters: Vec<Limiter>,
+    fader: Fader,
+    gain: f32,
+    frame: u64,
+    /// Events waiting for their frame, sorted by frame; capacity fixed at build.
+    pending: Vec<(u64, Event)>,
+    commands: rtrb::Consumer<Command>,
+    retired: rtrb::Producer<Box<PreparedMaterial>>,
+    telemetry: Arc<Telemetry>,
+    scratch: Vec<f32>,
+    peak: f32,
+}
+
+/// Builds an engine and its controller. `initial` is each channel's starting material
+/// (slot in `bank`); a channel without one is silent until it gets a material event.
+///
+/// # Errors
+/// An invalid configuration, or an initial slot beyond the bank.
+pub fn build(
+    config: &EngineConfig,
+    bank: MaterialBank,
+    initial: &[u16],
+) -> Result<(Controller, Engine), EngineError> {
+    if config.channels == 0 || config.channels > usize::from(u16::MAX) {
+        return Err(EngineError::InvalidConfig(format!(
+            "{} channels: need 1 to 65535",
+            config.channels
+        )));
+    }
+    if config.max_block == 0 || config.queue_capacity == 0 {
+        return Err(EngineError::InvalidConfig(
+            "max_block and queue_capacity must be positive".into(),
+        ));
+    }
+    if !(config.ceiling.0.is_finite() && config.gain.0.is_finite()) || config.ceiling.0 > 0.0 {
+        return Err(EngineError::InvalidConfig(format!(
+            "ceiling {} and gain {} must be finite, the ceiling at most 0 dB (full scale)",
+            config.ceiling, config.gain
+        )));
+    }
+    if !(config.perturbation.is_finite() && (0.0..=0.5).contains(&config.perturbation)) {
+        return Err(EngineError::InvalidConfig(format!(
+            "perturbation {} must be in 0..0.5",
+            config.perturbation
+        )));
+    }
+    if let Some(bad) = initial
+        .iter()
+        .find(|s| usize::from(**s) >= bank.materials.len())
+    {
+        return Err(EngineError::InvalidConfig(format!(
+            "initial material slot {bad} is beyond the bank of {}",
+            bank.materials.len()
+        )));
+    }
+    let names = bank.names();
+    let (command_tx, command_rx) = rtrb::RingBuffer::new(config.queue_capacity);
+    // Room for every replacement that could be in flight, so the engine never has to
+    // drop a retired material on the audio thread.
+    let (retire_tx, retire_rx) = rtrb::RingBuffer::new(config.queue_capacity);
+    let telemetry = Arc::new(Telemetry::default());
+    let bank: Vec<Box<PreparedMaterial>> = bank.materials.into_iter().map(Box::new).collect();
+    let mut channels: Vec<Channel> = (0..config.channels)
+        .map(|c| Channel::new(config, c))
+        .collect();
+    for (ch, slot) in channels.iter_mut().zip(initial) {
+        ch.set_material(*slot, &bank[usize::from(*slot)]);
+    }
+    let engine = Engine {
+        rate: config.rate,
+        limiters: (0..config.channels)
+            .map(|_| Limiter::new(config.ceiling, config.release, config.rate))
+            .collect(),
+        channels,
+        bank,
+        fader: Fader::fade_in(config.fade, config.rate),
+        gain: config.gain.to_amplitude() as f32,
+        frame: 0,
+        pending: Vec::with_capacity(config.queue_capacity),
+        commands: command_rx,
+        retired: retire_tx,
+        telemetry: Arc::clone(&telemetry),
+        scratch: vec![0.0; config.max_block],
+        peak: 0.0,
+    };
+    let controller = Controller {
+        commands: command_tx,
+        retired: retire_rx,
+        telemetry,
+        names,
+        rate: config.rate,
+    };
+    Ok((controller, engine))
+}
+
+impl Engine {
+    /// Renders `out.len() / device_channels` frames into `out`, interleaved.
+    ///
+    /// Never allocates, locks, blocks or panics. A buffer whose length is not a multiple
+    /// of `device_channels` has its trailing partial frame zeroed.
+    pub fn process(&mut self, out: &mut [f32], device_channels: usize) {
+        if device_channels == 0 {
+            return;
+        }
+        self.drain_commands();
+        let frames = out.len() / device_channels;
+        out[frames * device_channels..].fill(0.0);
+        let mut done = 0;
+        while done < frames {
+            let now = self.frame;
+            self.apply_due(now);
+            let until_event = self
+                .pending
+                .first()
+                .map_or(u64::MAX, |(at, _)| at.saturating_sub(now));
+            let n = (frames - done)
+                .min(self.scratch.len())
+                .min(usize::try_from(until_event).unwrap_or(usize::MAX))
+                .max(1);
+            self.render(
+                &mut out[done * device_channels..(done + n) * device_channels],
+                device_channels,
+            );
+            done += n;
+        }
+        self.publish();
+    }
+
+    /// The engine's rate.
+    #[must_use]
+    pub fn rate(&self) -> SampleRate {
+        self.rate
+    }
+
+    /// Number of channels.
+    #[must_use]
+    pub fn channels(&self) -> usize {
+        self.channels.len()
+    }
+
+    /// Frames rendered so far (the engine's clock).
+    #[must_use]
+    pub fn frame(&self) -> u64 {
+        self.frame
+    }
+
+    fn drain_commands(&mut self) {
+        while let Ok(command) = self.commands.pop() {
+            match command {
+                Command::Event(e) => match e.at {
+                    Some(at) if at > self.frame => {
+                        if self.pending.len() < self.pending.capacity() {
+                            // Stable: events for the same frame keep their order.
+                            let i = self.pending.partition_point(|(f, _)| *f <= at);
+                            self.pending.insert(i, (at, e.event));
+                        } else {
+                            self.telemetry.dropped.fetch_add(1, Ordering::Relaxed);
+                            self.apply(e.event);
+                        }
+                    }
+                    Some(at) => {
+                        if at < self.frame {
+                            self.telemetry.late.fetch_add(1, Ordering::Relaxed);
+                        }
+                        self.apply(e.event);
+                    }
+                    None => self.apply(e.event),
+                },
+                Command::Replace(slot, material) => {
+                    if let Some(old) = self.bank.get_mut(usize::from(slot)) {
+                        let old = std::mem::replace(old, material);
+                        if let Err(rtrb::PushError::Full(old)) = self.retired.push(old) {
+                            // Never free on the audio thread: leak rather than deallocate.
+                            std::mem::forget(old);
+                        }
+                    }
+                }
+                Command::Stop => self.fader.fade_out(),
+            }
+        }
+    }
+
+    fn apply_due(&mut self, now: u64) {
+        let due = self.pending.partition_point(|(f, _)| *f <= now);
+        for i in 0..due {
+            let event = self.pending[i].1;
+            self.apply(event);
+        }
+        self.pending.drain(..due);
+    }
+
+    fn apply(&mut self, event: Event) {
+        let frame = self.frame;
+        let Some(channel) = self.channels.get_mut(usize::from(event.channel())) else {
+            self.telemetry.count_rejected();
+            return;
+        };
+        match event {
+            Event::Force { reading, .. } => channel.force(&reading, frame, &self.telemetry),
+            Event::Step { intensity, .. } => channel.step(intensity, &self.telemetry),
+            Event::Material { slot, .. } => match self.bank.get(usize::from(slot)) {
+                Some(m) => channel.set_material(slot, m),
+                None => self.telemetry.count_rejected(),
+            },
+        }
+    }
+
+    fn render(&mut self, out: &mut [f32], device_channels: usize) {
+        let n = out.len() / device_channels;
+        out.fill(0.0);
+        let mut resets = 0;
+        let mut report = LimiterReport::default();
+        // The fader is shared by all channels: compute its gains once.
+        let fade = &mut self.scratch[..n];
+        for g in fade.iter_mut() {
+            *g = self.fader.tick() * self.gain;
+        }
+        let mut channel_buf = [0.0f32; 64];
+        for (c, (channel, limiter)) in self
+            .channels
+            .iter_mut()
+            .zip(self.limiters.iter_mut())
+            .enumerate()
+        {
+            if c >= device_channels {
+                break;
+            }
+            // Render in sub-blocks through a stack buffer: no per-channel output storage.
+            let mut start = 0;
+            while start < n {
+                let len = (n - start).min(channel_buf.len());
+                let buf = &mut channel_buf[..len];
+                resets += channel.render(buf);
+                for (i, y) in buf.iter().enumerate() {
+                    let v = limiter.tick(y * fade[start + i], &mut report);
+                    self.peak = self.peak.max(v.abs());
+                    out[(start + i) * device_channels + c] = v;
+                }
+                start += len;
+            }
+        }
+        // Channels without a device channel still run, so their state stays in time.
+        for channel in self.channels.iter_mut().skip(device_channels) {
+            let mut start = 0;
+            while start < n {
+                let len = (n - start).min(channel_buf.len());
+                resets += channel.render(&mut channel_buf[..len]);
+                start += len;
+            }
+        }
+        self.frame += n as u64;
+        let t = &self.telemetry;
+        t.non_finite
+            .fetch_add(u64::from(resets + report.non_finite), Ordering::Relaxed);
+        t.limited
+            .fetch_add(u64::from(report.limited), Ordering::Relaxed);
+    }
+
+    fn publish(&mut self) {
+        let t = &self.telemetry;
+        t.frames.store(self.frame, Ordering::Relaxed);
+        t.peak_bits.store(self.peak.to_bits(), Ordering::Relaxed);
+        t.stopped.store(self.fader.is_silent(), Ordering::Relaxed);
+        let trips: u64 = self.channels.iter().map(Channel::watchdog_trips).sum();
+        t.watchdog_trips.store(trips, Ordering::Relaxed);
+    }
+}

@@ -134,7 +134,9 @@ mod tests {
     fn one_strike_per_stance_despite_the_double_hump_and_noise() {
         let mut d = detector();
         // A stance: rise, hump, valley above `off`, hump, fall; with noise around `on`.
-        let stance = [0.0, 20.0, 59.0, 61.0, 58.0, 62.0, 400.0, 800.0, 500.0, 700.0, 100.0, 35.0, 0.0];
+        let stance = [
+            0.0, 20.0, 59.0, 61.0, 58.0, 62.0, 400.0, 800.0, 500.0, 700.0, 100.0, 35.0, 0.0,
+        ];
         let mut strikes = Vec::new();
         for (k, f) in stance.iter().chain(stance.iter()).enumerate() {
             if let Some(s) = d.update(*f, 100 * k as u64) {
@@ -152,7 +154,10 @@ mod tests {
         let s = d.update(100.0, 10).unwrap();
         assert!((s.intensity - 1.0).abs() < 1e-6);
         d.update(0.0, 20);
-        assert!(d.update(100.0, 30).is_none(), "inside the refractory period");
+        assert!(
+            d.update(100.0, 30).is_none(),
+            "inside the refractory period"
+        );
         d.update(0.0, 400);
         let s = d.update(1000.0, 410).unwrap();
         assert_eq!(s.intensity, 2.0, "clamped");

@@ -220,10 +220,8 @@ impl ModalFilter {
         for m in &self.modes {
             if !m.pair && m.pole.re < 0.0 {
                 // A negative real pole: a mode at the Nyquist frequency of the old rate.
-                let q = Complex64::from_polar(
-                    m.pole.norm().powf(ratio),
-                    std::f64::consts::PI * ratio,
-                );
+                let q =
+                    Complex64::from_polar(m.pole.norm().powf(ratio), std::f64::consts::PI * ratio);
                 modes.push(Mode {
                     pole: q,
                     residue: m.residue * 0.5,
@@ -406,7 +404,10 @@ mod tests {
 
     fn resonant(rate: SampleRate) -> Sos {
         let pole = |f: f64, tau: f64| {
-            Complex64::from_polar((-1.0 / (tau * rate.hz())).exp(), rate.omega(crate::units::Hz(f)))
+            Complex64::from_polar(
+                (-1.0 / (tau * rate.hz())).exp(),
+                rate.omega(crate::units::Hz(f)),
+            )
         };
         Sos::new(vec![
             Biquad::from_roots(
@@ -432,7 +433,10 @@ mod tests {
         for k in 0..200 {
             let omega = std::f64::consts::PI * k as f64 / 200.0;
             let (a, b) = (sos.response(omega), modal.response(omega));
-            assert!((a - b).norm() < 1e-9 * a.norm().max(1.0), "{omega}: {a} {b}");
+            assert!(
+                (a - b).norm() < 1e-9 * a.norm().max(1.0),
+                "{omega}: {a} {b}"
+            );
         }
         let mut x = vec![0.0; 400];
         x[0] = 1.0;
@@ -454,7 +458,12 @@ mod tests {
         let g = fast.impulse_response(200 * 24);
         // Sample 0 holds the direct term, which is not a sampled waveform.
         for n in 1..200 {
-            assert!((h[n] - g[24 * n]).abs() < 1e-9, "{n}: {} {}", h[n], g[24 * n]);
+            assert!(
+                (h[n] - g[24 * n]).abs() < 1e-9,
+                "{n}: {} {}",
+                h[n],
+                g[24 * n]
+            );
         }
         for (m, f) in modal.modes.iter().zip(&fast.modes) {
             if m.pole.re > 0.0 {

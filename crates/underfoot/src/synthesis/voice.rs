@@ -231,18 +231,26 @@ impl PreparedMaterial {
         // In the band, the voice (modes and post filter) is the model's response scaled by
         // the rate ratio (see `modal`): solve the residues for exactly that.
         let ratio = rate.hz() / model.sample_rate.hz();
-        let target = |f: Hz| {
-            sos.response(model.sample_rate.omega(f)) * ratio / post.response(rate.omega(f))
-        };
+        let target =
+            |f: Hz| sos.response(model.sample_rate.omega(f)) * ratio / post.response(rate.omega(f));
         for _ in 0..config.magnitude_iterations {
             let current = modal.clone();
             let magnitude_target = |f: Hz| {
                 let h = current.response(rate.omega(f));
-                let phase = if h.norm() > 0.0 { h / h.norm() } else { Complex64::new(1.0, 0.0) };
+                let phase = if h.norm() > 0.0 {
+                    h / h.norm()
+                } else {
+                    Complex64::new(1.0, 0.0)
+                };
                 phase * target(f).norm()
             };
             modal
-                .fit_residues(model.band_hz, &magnitude_target, config.fit_points, config.regularisation)
+                .fit_residues(
+                    model.band_hz,
+                    &magnitude_target,
+                    config.fit_points,
+                    config.regularisation,
+                )
                 .map_err(|source| VoiceError::Modal {
                     name: name.clone(),
                     source,
@@ -405,6 +413,31 @@ impl Voice {
         }
     }
 
+    /// Puts the voice in the steady state of a constant input `x` (before its gain), as if
+    /// it had been driven by `x` forever. A voice that starts mid-stance under a force
+    /// drive starts from here instead of from rest, so it does not ring with the step
+    /// response of a force that was in fact there all along.
+    pub fn settle(&mut self, x: f32) {
+        let x = f64::from(x * self.gain);
+        let mut v = f64::from(self.direct) * x;
+        for k in 0..self.lanes {
+            // s = p s + r x  =>  s = r x / (1 - p)
+            let p = Complex64::new(self.pole_re[k].into(), self.pole_im[k].into());
+            let r = Complex64::new(self.res_re[k].into(), self.res_im[k].into());
+            let s = r * x / (1.0 - p);
+            self.state_re[k] = s.re as f32;
+            self.state_im[k] = s.im as f32;
+            v += s.re;
+        }
+        for sec in &mut self.sections[..self.section_count] {
+            let [b0, b1, b2] = sec.b.map(f64::from);
+            let [a1, a2] = sec.a.map(f64::from);
+            let y = v * (b0 + b1 + b2) / (1.0 + a1 + a2);
+            sec.s = [(y - b0 * v) as f32, (b2 * v - a2 * y) as f32];
+            v = y;
+        }
+    }
+
     /// New numerators for a new step: each coefficient of the modal numerator times
     /// `1 + sigma n`, `n ~ N(0, 1)`. The poles are untouched.
     pub fn perturb(&mut self, rng: &mut SplitMix64, sigma: f32) {
@@ -541,7 +574,11 @@ mod tests {
                 .filter(|(f, _)| f.0 < 0.8 * model.band_hz.hi.0)
                 .map(|(_, d)| d.abs())
                 .fold(0.0, f64::max);
-            assert!(lsd < 0.6 && inner < 1.5, "{}: lsd {lsd:.2} dB, worst {inner:.2} dB", model.name);
+            assert!(
+                lsd < 0.6 && inner < 1.5,
+                "{}: lsd {lsd:.2} dB, worst {inner:.2} dB",
+                model.name
+            );
         }
     }
 

@@ -1,0 +1,179 @@
+//! One channel: force in, a material's voice, vibration out.
+
+use super::{EngineConfig, Telemetry};
+use crate::force::SensorReading;
+use crate::force::condition::ForceConditioner;
+use crate::force::drive::{DriveKind, Polarity};
+use crate::force::steps::StepDetector;
+use crate::safety::Watchdog;
+use crate::signal::noise::SplitMix64;
+use crate::synthesis::{PreparedMaterial, Voice};
+
+/// A channel's state. All buffers are sized at construction; rendering never allocates.
+pub(super) struct Channel {
+    conditioner: ForceConditioner,
+    detector: StepDetector,
+    watchdog: Watchdog,
+    rng: SplitMix64,
+    drive: DriveKind,
+    polarity: Polarity,
+    inverse_weight: f32,
+    rate_hz: f32,
+    sigma: f32,
+    /// The voice playing now, and the one fading out after a material change.
+    voices: [Voice; 2],
+    current: usize,
+    slot: Option<u16>,
+    fade_left: u32,
+    fade_len: u32,
+    pending_impulse: f32,
+    previous_total: f32,
+    last_drive: f32,
+    drive_buf: Vec<f32>,
+    out_a: Vec<f32>,
+    out_b: Vec<f32>,
+}
+
+impl Channel {
+    pub(super) fn new(config: &EngineConfig, index: usize) -> Self {
+        let rate = config.rate;
+        Self {
+            conditioner: ForceConditioner::new(rate, config.sensor_rate),
+            detector: StepDetector::new(&config.detector, rate),
+            watchdog: Watchdog::new(&config.watchdog, rate),
+            // Each channel its own stream: steps on two feet are not the same.
+            rng: SplitMix64::new(config.seed ^ (index as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)),
+            drive: config.drive,
+            polarity: config.polarity,
+            inverse_weight: (1.0 / config.nominal_weight.0.max(1e-9)) as f32,
+            rate_hz: rate.hz() as f32,
+            sigma: config.perturbation,
+            voices: [Voice::new(), Voice::new()],
+            current: 0,
+            slot: None,
+            fade_left: 0,
+            fade_len: rate.samples_in(config.crossfade).max(1) as u32,
+            pending_impulse: 0.0,
+            previous_total: 0.0,
+            last_drive: 0.0,
+            drive_buf: vec![0.0; config.max_block],
+            out_a: vec![0.0; config.max_block],
+            out_b: vec![0.0; config.max_block],
+        }
+    }
+
+    pub(super) fn watchdog_trips(&self) -> u64 {
+        self.watchdog.trips
+    }
+
+    /// Switches to a material; the old voice fades out over the crossfade time.
+    pub(super) fn set_material(&mut self, slot: u16, material: &PreparedMaterial) {
+        if self.slot == Some(slot) {
+            return;
+        }
+        let next = 1 - self.current;
+        self.voices[next].load(material, self.drive);
+        self.voices[next].perturb(&mut self.rng, self.sigma);
+        self.voices[next].settle(self.last_drive);
+        let had_material = self.slot.is_some();
+        self.current = next;
+        self.slot = Some(slot);
+        self.fade_left = if had_material { self.fade_len } else { 0 };
+    }
+
+    /// A force reading at engine frame `frame`.
+    pub(super) fn force(&mut self, reading: &SensorReading, frame: u64, telemetry: &Telemetry) {
+        if !reading.is_finite() {
+            telemetry.count_rejected();
+            return;
+        }
+        self.conditioner.push(reading);
+        self.watchdog.feed();
+        if let Some(strike) = self.detector.update(reading.total(), frame) {
+            self.strike(strike.intensity, telemetry);
+        }
+    }
+
+    /// An explicit step from a source that detects steps itself.
+    pub(super) fn step(&mut self, intensity: f32, telemetry: &Telemetry) {
+        if !intensity.is_finite() {
+            telemetry.count_rejected();
+            return;
+        }
+        self.watchdog.feed_step();
+        self.strike(intensity.clamp(0.0, 4.0), telemetry);
+        // A step event is an impulse whatever the drive: there is no force to follow.
+        if self.drive != DriveKind::Impulse {
+            self.pending_impulse += intensity.clamp(0.0, 4.0);
+        }
+    }
+
+    fn strike(&mut self, intensity: f32, telemetry: &Telemetry) {
+        telemetry.count_strike();
+        for v in &mut self.voices {
+            v.perturb(&mut self.rng, self.sigma);
+        }
+        if self.drive == DriveKind::Impulse {
+            self.pending_impulse += intensity;
+        }
+    }
+
+    /// Renders `out.len()` samples (at most `max_block`). Returns non-finite resets.
+    pub(super) fn render(&mut self, out: &mut [f32]) -> u32 {
+        let n = out.len().min(self.drive_buf.len());
+        let drive = &mut self.drive_buf[..n];
+        for x in drive.iter_mut() {
+            let total = self.conditioner.next_total();
+            *x = match self.drive {
+                DriveKind::Impulse => 0.0,
+                DriveKind::Force => total * self.inverse_weight,
+                DriveKind::ForceRate => {
+                    let rate = f64::from((total - self.previous_total) * self.rate_hz);
+                    self.polarity.rectify(rate) as f32 * self.inverse_weight
+                }
+            };
+            self.previous_total = total;
+        }
+        if let Some(last) = drive.last() {
+            // The impulse drive's steady state is rest, whatever the last sample held.
+            self.last_drive = if self.drive == DriveKind::Impulse {
+                0.0
+            } else {
+                *last
+            };
+        }
+        if let Some(first) = drive.first_mut() {
+            *first += self.pending_impulse;
+            self.pending_impulse = 0.0;
+        }
+        let mut resets = 0;
+        if self.slot.is_none() {
+            out[..n].fill(0.0);
+        } else {
+            let (cur, old) = (self.current, 1 - self.current);
+            resets += self.voices[cur].process(drive, &mut self.out_a[..n]);
+            if self.fade_left > 0 {
+                resets += self.voices[old].process(drive, &mut self.out_b[..n]);
+                for i in 0..n {
+                    // Equal-power crossfade: the two materials' signals are uncorrelated.
+                    let t = if self.fade_left > 0 {
+                        self.fade_left -= 1;
+                        self.fade_left as f32 / self.fade_len as f32
+                    } else {
+                        0.0
+                    };
+                    let angle = t * std::f32::consts::FRAC_PI_2;
+                    self.out_a[i] = self.out_a[i] * angle.cos() + self.out_b[i] * angle.sin();
+                }
+                if self.fade_left == 0 {
+                    self.voices[old].reset();
+                }
+            }
+            out[..n].copy_from_slice(&self.out_a[..n]);
+        }
+        for y in &mut out[..n] {
+            *y *= self.watchdog.tick();
+        }
+        resets
+    }
+}

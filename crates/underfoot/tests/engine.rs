@@ -1,0 +1,331 @@
+//! The engine's contract: block-size invariance, sample-accurate onsets, material
+//! crossfades without clicks, the watchdog, the limiter, and non-finite handling.
+
+use underfoot::engine::{self, Controller, Engine, EngineConfig, Event, MaterialBank, TimedEvent};
+use underfoot::force::SensorReading;
+use underfoot::material::builtin::builtin;
+use underfoot::synthesis::VoiceConfig;
+use underfoot::units::{Newtons, SampleRate};
+
+const RATE: SampleRate = SampleRate(48_000);
+
+/// A smooth stance-shaped force for calibration: 0.6 s, peak 1.1 body weights.
+fn nominal_step() -> Vec<f64> {
+    let w = Newtons::weight_of(70.0).0;
+    let n = RATE.samples_in(underfoot::units::Seconds(0.6));
+    (0..n)
+        .map(|i| 1.1 * w * (std::f64::consts::PI * i as f64 / n as f64).sin().powi(2))
+        .collect()
+}
+
+fn bank() -> MaterialBank {
+    MaterialBank::prepare(
+        builtin(),
+        RATE,
+        &VoiceConfig::default(),
+        &nominal_step(),
+        Newtons::weight_of(70.0),
+    )
+    .unwrap()
+}
+
+fn engine_with(config: &EngineConfig, material: &str) -> (Controller, Engine) {
+    let bank = bank();
+    let slot = bank.slot(material).unwrap();
+    let initial = vec![slot; config.channels];
+    engine::build(config, bank, &initial).unwrap()
+}
+
+/// Steps every 0.5 s: force readings at 500 Hz, a trapezoid per stance, on every channel.
+fn walk_events(channels: usize, seconds: f64) -> Vec<TimedEvent> {
+    let period = RATE.0 as u64 / 500;
+    let frames = (seconds * RATE.hz()) as u64;
+    let mut events = Vec::new();
+    let mut frame = 0;
+    while frame < frames {
+        let t = frame as f64 / RATE.hz();
+        let phase = t % 0.5;
+        let f = if phase < 0.05 {
+            phase / 0.05 * 750.0
+        } else if phase < 0.3 {
+            750.0
+        } else if phase < 0.35 {
+            (0.35 - phase) / 0.05 * 750.0
+        } else {
+            0.0
+        };
+        for c in 0..channels {
+            let reading = SensorReading::new(&[0.6 * f as f32, 0.4 * f as f32]).unwrap();
+            events.push(TimedEvent::at(
+                frame,
+                Event::Force {
+                    channel: c as u16,
+                    reading,
+                },
+            ));
+        }
+        frame += period;
+    }
+    events
+}
+
+fn render(
+    config: &EngineConfig,
+    material: &str,
+    events: &[TimedEvent],
+    block: usize,
+    frames: usize,
+) -> Vec<f32> {
+    let (mut ctl, mut eng) = engine_with(config, material);
+    let dc = config.channels;
+    let mut out = vec![0.0; frames * dc];
+    let mut next = 0;
+    let mut done = 0;
+    while done < frames {
+        let n = block.min(frames - done);
+        // Send what is due before the end of this block, as a live source would.
+        while next < events.len() && events[next].at.unwrap() < (done + n) as u64 {
+            ctl.send(events[next]).unwrap();
+            next += 1;
+        }
+        eng.process(&mut out[done * dc..(done + n) * dc], dc);
+        done += n;
+    }
+    out
+}
+
+#[test]
+fn output_is_identical_for_blocks_of_1_7_64_and_512_frames() {
+    for drive in ["impulse", "force", "force-rate"] {
+        let config = EngineConfig {
+            channels: 2,
+            drive: drive.parse().unwrap(),
+            ..EngineConfig::default()
+        };
+        let frames = 48_000;
+        let events = walk_events(2, 1.0);
+        let reference = render(&config, "gravel", &events, 512, frames);
+        let energy: f64 = reference.iter().map(|v| f64::from(*v).powi(2)).sum();
+        assert!(energy > 1e-6, "{drive}: the walk is audible ({energy})");
+        for block in [1, 7, 64] {
+            let out = render(&config, "gravel", &events, block, frames);
+            assert!(out == reference, "{drive}: block {block} differs");
+        }
+    }
+}
+
+#[test]
+fn a_strike_reaches_the_output_at_the_frame_of_its_reading() {
+    let config = EngineConfig::default();
+    let (mut ctl, mut eng) = engine_with(&config, "hard");
+    let mut out = vec![0.0f32; 64];
+    // Idle readings keep the watchdog fed; then the crossing, mid-block.
+    for k in 0..20 {
+        ctl.send(TimedEvent::at(
+            k * 64,
+            Event::Force {
+                channel: 0,
+                reading: SensorReading::single(0.0),
+            },
+        ))
+        .unwrap();
+    }
+    let crossing = 20 * 64 + 23;
+    ctl.send(TimedEvent::at(
+        crossing,
+        Event::Force {
+            channel: 0,
+            reading: SensorReading::single(700.0),
+        },
+    ))
+    .unwrap();
+    let mut first = None;
+    for b in 0..40u64 {
+        eng.process(&mut out, 1);
+        if first.is_none()
+            && let Some(i) = out.iter().position(|v| v.abs() > 1e-6)
+        {
+            first = Some(b * 64 + i as u64);
+        }
+    }
+    assert_eq!(first, Some(crossing), "onset at the crossing's own sample");
+    assert_eq!(ctl.telemetry().strikes, 1);
+}
+
+#[test]
+fn live_events_take_effect_in_the_next_block() {
+    let config = EngineConfig::default();
+    let (mut ctl, mut eng) = engine_with(&config, "wood");
+    let mut out = vec![0.0f32; 128];
+    eng.process(&mut out, 1);
+    ctl.send(TimedEvent::now(Event::Force {
+        channel: 0,
+        reading: SensorReading::single(0.0),
+    }))
+    .unwrap();
+    ctl.send(TimedEvent::now(Event::Force {
+        channel: 0,
+        reading: SensorReading::single(700.0),
+    }))
+    .unwrap();
+    eng.process(&mut out, 1);
+    assert!(
+        out[0] != 0.0,
+        "the step sounds from the first sample of the next block"
+    );
+}
+
+#[test]
+fn switching_material_mid_walk_does_not_click() {
+    let config = EngineConfig {
+        drive: "force".parse().unwrap(),
+        ..EngineConfig::default()
+    };
+    let bank = bank();
+    let (gravel, snow) = (bank.slot("gravel").unwrap(), bank.slot("snow").unwrap());
+    let (mut ctl, mut eng) = engine::build(&config, bank, &[gravel]).unwrap();
+    let mut events = walk_events(1, 2.0);
+    let switch = 48_000 + 7_000; // mid-stance, while the voice rings
+    events.push(TimedEvent::at(
+        switch,
+        Event::Material {
+            channel: 0,
+            slot: snow,
+        },
+    ));
+    events.sort_by_key(|e| e.at);
+    for e in events {
+        ctl.send(e).unwrap();
+    }
+    let mut out = vec![0.0f32; 96_000];
+    for chunk in out.chunks_mut(256) {
+        eng.process(chunk, 1);
+    }
+    // A click is a sample-to-sample jump far beyond the signal's own largest jumps.
+    let jump = |s: &[f32]| {
+        s.windows(2)
+            .map(|w| (w[1] - w[0]).abs())
+            .fold(0.0, f32::max)
+    };
+    let around = jump(&out[switch as usize - 200..switch as usize + 2_000]);
+    let before = jump(&out[switch as usize - 24_000..switch as usize - 200]);
+    assert!(
+        around <= 1.5 * before.max(1e-6),
+        "jump {around} at the switch, {before} before"
+    );
+}
+
+#[test]
+fn watchdog_fades_out_within_100_ms_when_readings_stop() {
+    let config = EngineConfig {
+        drive: "force".parse().unwrap(),
+        ..EngineConfig::default()
+    };
+    let (mut ctl, mut eng) = engine_with(&config, "gravel");
+    // A steady loaded foot (the force drive sounds while force changes), then nothing.
+    for k in 0..250u64 {
+        let f = 400.0 + 300.0 * ((k as f32) * 0.3).sin();
+        ctl.send(TimedEvent::at(
+            k * 96,
+            Event::Force {
+                channel: 0,
+                reading: SensorReading::single(f),
+            },
+        ))
+        .unwrap();
+    }
+    let last = 249 * 96;
+    let mut out = vec![0.0f32; 48_000];
+    for chunk in out.chunks_mut(64) {
+        eng.process(chunk, 1);
+    }
+    let after = &out[last as usize + RATE.samples_in(underfoot::units::Seconds(0.1))..];
+    assert!(
+        after.iter().all(|v| *v == 0.0),
+        "silent 100 ms after the last reading"
+    );
+    assert!(out[..last as usize].iter().any(|v| v.abs() > 1e-5));
+    assert_eq!(ctl.telemetry().watchdog_trips, 1);
+}
+
+#[test]
+fn the_limiter_holds_the_ceiling_and_non_finite_input_is_rejected() {
+    let config = EngineConfig {
+        gain: underfoot::units::Decibels(80.0),
+        ..EngineConfig::default()
+    };
+    let (mut ctl, mut eng) = engine_with(&config, "metal");
+    for k in 0..50u64 {
+        let f = if k % 10 < 5 { 2000.0 } else { 0.0 };
+        ctl.send(TimedEvent::at(
+            k * 480,
+            Event::Force {
+                channel: 0,
+                reading: SensorReading::single(f),
+            },
+        ))
+        .unwrap();
+    }
+    ctl.send(TimedEvent::at(
+        100,
+        Event::Force {
+            channel: 0,
+            reading: SensorReading::single(f32::NAN),
+        },
+    ))
+    .unwrap();
+    ctl.send(TimedEvent::at(
+        200,
+        Event::Step {
+            channel: 0,
+            intensity: f32::INFINITY,
+        },
+    ))
+    .unwrap();
+    ctl.send(TimedEvent::at(
+        300,
+        Event::Step {
+            channel: 9,
+            intensity: 1.0,
+        },
+    ))
+    .unwrap();
+    let mut out = vec![0.0f32; 24_000];
+    for chunk in out.chunks_mut(100) {
+        eng.process(chunk, 1);
+    }
+    let ceiling = underfoot::units::Decibels(-6.0).to_amplitude() as f32;
+    assert!(out.iter().all(|v| v.is_finite() && v.abs() <= ceiling));
+    let t = ctl.telemetry();
+    assert!(t.limited > 0 && t.peak <= ceiling);
+    assert_eq!(t.rejected, 3);
+}
+
+#[test]
+fn start_and_stop_fade_without_a_pop() {
+    let config = EngineConfig::default();
+    let (mut ctl, mut eng) = engine_with(&config, "wood");
+    ctl.send(TimedEvent::at(
+        0,
+        Event::Step {
+            channel: 0,
+            intensity: 1.0,
+        },
+    ))
+    .unwrap();
+    let mut out = vec![0.0f32; 960];
+    eng.process(&mut out, 1);
+    // The first 10 ms are ramped: the first sample is a tiny fraction of the step's peak.
+    let peak = out.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    assert!(out[0].abs() < 0.01 * peak.max(1e-9) || out[0] == 0.0);
+    ctl.stop().unwrap();
+    let mut tail = vec![0.0f32; 960];
+    eng.process(&mut tail, 1);
+    assert!(ctl.telemetry().stopped);
+    assert!(tail[480..].iter().all(|v| *v == 0.0));
+    let steps = tail
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .fold(0.0, f32::max);
+    assert!(steps < 0.5 * peak.max(1e-9));
+}
