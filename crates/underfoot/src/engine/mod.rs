@@ -30,6 +30,7 @@
 
 mod channel;
 pub mod event;
+pub mod offline;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};

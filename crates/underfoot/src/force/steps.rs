@@ -30,15 +30,34 @@ pub struct DetectorConfig {
 }
 
 impl Default for DetectorConfig {
+    /// Thresholds as documented on the fields; the nominal loading rate is that of the
+    /// gait model's nominal step (70 kg, 1.8 steps/s) read at 500 Hz.
     fn default() -> Self {
-        Self {
+        let mut config = Self {
             on: Newtons(60.0),
             off: Newtons(30.0),
             refractory: Seconds(0.2),
-            nominal_loading_rate: 10_000.0,
+            nominal_loading_rate: 1.0,
             min_intensity: 0.1,
             max_intensity: 2.0,
-        }
+        };
+        config.nominal_loading_rate = config.loading_rate_of(
+            &super::gait::nominal_step(70.0, 1.8, 500.0),
+            SampleRate(500),
+        );
+        config
+    }
+}
+
+impl DetectorConfig {
+    /// The loading rate the detector measures at the `on` crossing of `step` (total force
+    /// sampled at `rate`): what to use as [`nominal_loading_rate`](Self::nominal_loading_rate)
+    /// for a nominal step. 1 N/s if the step never crosses.
+    #[must_use]
+    pub fn loading_rate_of(&self, step: &[f64], rate: SampleRate) -> f64 {
+        step.windows(2)
+            .find(|w| w[1] >= self.on.0 && w[0] < self.on.0)
+            .map_or(1.0, |w| (w[1] - w[0]) * rate.hz())
     }
 }
 
@@ -147,8 +166,37 @@ mod tests {
     }
 
     #[test]
+    fn the_nominal_step_has_intensity_one() {
+        let config = DetectorConfig::default();
+        assert!(
+            config.nominal_loading_rate > 1000.0,
+            "{}",
+            config.nominal_loading_rate
+        );
+        let step = super::super::gait::nominal_step(70.0, 1.8, 500.0);
+        let mut d = StepDetector::new(&config, SampleRate(500));
+        let strikes: Vec<_> = step
+            .iter()
+            .enumerate()
+            .filter_map(|(k, f)| d.update(*f as f32, k as u64))
+            .collect();
+        assert_eq!(strikes.len(), 1);
+        assert!(
+            (strikes[0].intensity - 1.0).abs() < 1e-3,
+            "{:?}",
+            strikes[0]
+        );
+    }
+
+    #[test]
     fn refractory_period_and_intensity() {
-        let mut d = detector();
+        let mut d = StepDetector::new(
+            &DetectorConfig {
+                nominal_loading_rate: 10_000.0,
+                ..DetectorConfig::default()
+            },
+            SampleRate(1000),
+        );
         // 0 -> 100 N in 10 ms = 10 kN/s: a nominal step.
         d.update(0.0, 0);
         let s = d.update(100.0, 10).unwrap();

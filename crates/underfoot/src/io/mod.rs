@@ -4,11 +4,11 @@
 //!
 //! | feature | module | direction |
 //! |---|---|---|
-//! | `replay` | [`replay`] | force from a CSV track, at real-time pace |
-//! | `serial` | [`serial`] | force from a microcontroller over a serial port (framed binary protocol) |
-//! | `osc` | [`osc`] | force, steps and material changes from OSC over UDP (a VR engine) |
-//! | `wav` | [`wav`] | vibration to a WAV file |
-//! | `audio` | [`audio`] | vibration to an audio device through cpal (ALSA; JACK with `jack`) |
+//! | `replay` | `replay` | force from a CSV track, at real-time pace |
+//! | `serial` | `serial` | force from a microcontroller over a serial port (framed binary protocol) |
+//! | `osc` | `osc` | force, steps and material changes from OSC over UDP (a VR engine) |
+//! | `wav` | `wav` | vibration to a WAV file |
+//! | `audio` | `audio` | vibration to an audio device through cpal (ALSA; JACK with `jack`) |
 //!
 //! Inputs implement [`EventSource`]: a blocking poll, run on its own thread, whose events
 //! go to the engine over its lock-free queue.

@@ -159,11 +159,12 @@ mod tests {
     /// Two channels of heel and toe; row `i` at `i * step` seconds reads `i` on every sensor
     /// of channel 0 and `-i` on channel 1, so order can be checked from the values.
     fn track(rows: usize, step: f64) -> ForceTrack {
-        let channel = ChannelSensors {
+        let channel = |name: &str| ChannelSensors {
+            name: name.into(),
             sensors: vec!["heel".into(), "toe".into()],
         };
         ForceTrack {
-            channels: vec![channel.clone(), channel],
+            channels: vec![channel("left"), channel("right")],
             rows: (0..rows)
                 .map(|i| ForceRow {
                     time: Seconds(i as f64 * step),

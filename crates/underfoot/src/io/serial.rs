@@ -983,11 +983,15 @@ mod tests {
     fn reference_sender_sends_a_track() {
         use crate::force::track::ChannelSensors;
         use crate::units::Seconds;
-        let channel = |names: &[&str]| ChannelSensors {
+        let channel = |name: &str, names: &[&str]| ChannelSensors {
+            name: name.into(),
             sensors: names.iter().map(|s| (*s).to_string()).collect(),
         };
         let track = ForceTrack {
-            channels: vec![channel(&["heel", "toe"]), channel(&["heel", "toe"])],
+            channels: vec![
+                channel("left", &["heel", "toe"]),
+                channel("right", &["heel", "toe"]),
+            ],
             rows: (0..3)
                 .map(|i| ForceRow {
                     time: Seconds(f64::from(i) * 0.01),

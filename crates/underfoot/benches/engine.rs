@@ -1,0 +1,89 @@
+//! Real-time cost of the synthesis.
+//!
+//! - `voice/order-12`: one voice of an order-12 material (`glass`: six modes, a fourth-order
+//!   low-pass and the DC-blocking high-pass) for one second at 48 kHz, walking (a strike
+//!   every half second). Criterion's throughput is voice-samples per second; divided by
+//!   48 000 it is the number of channels one core runs in real time.
+//! - `engine/64-frame block`: the whole engine (event handling, 16 channels walking,
+//!   limiter, fades) for one 64-frame block; against the block's 1.33 ms of real time.
+
+use std::hint::black_box;
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use underfoot::engine::{self, EngineConfig, Event, MaterialBank, TimedEvent};
+use underfoot::force::SensorReading;
+use underfoot::force::drive::DriveKind;
+use underfoot::force::gait::nominal_step;
+use underfoot::material::builtin::builtin;
+use underfoot::signal::noise::SplitMix64;
+use underfoot::synthesis::{PreparedMaterial, Voice, VoiceConfig};
+use underfoot::units::{Newtons, SampleRate};
+
+const RATE: SampleRate = SampleRate(48_000);
+
+fn voice(c: &mut Criterion) {
+    let model = builtin().get("glass").expect("built-in glass");
+    assert_eq!(model.order, 12);
+    let m = PreparedMaterial::prepare(model, RATE, &VoiceConfig::default()).unwrap();
+    let mut v = Voice::new();
+    v.load(&m, DriveKind::Impulse);
+    let mut x = vec![0.0f32; 48_000];
+    x[0] = 1.0;
+    x[24_000] = 0.8;
+    let mut y = vec![0.0f32; 48_000];
+    let mut rng = SplitMix64::new(1);
+    let mut group = c.benchmark_group("voice");
+    group.throughput(Throughput::Elements(x.len() as u64));
+    group.bench_function("order-12", |b| {
+        b.iter(|| {
+            v.perturb(&mut rng, 0.01);
+            black_box(v.process(black_box(&x), &mut y));
+        });
+    });
+    group.finish();
+}
+
+fn engine_block(c: &mut Criterion) {
+    let channels = 16;
+    let weight = Newtons::weight_of(70.0);
+    let bank = MaterialBank::prepare(
+        builtin(),
+        RATE,
+        &VoiceConfig::default(),
+        &nominal_step(70.0, 1.8, RATE.hz()),
+        weight,
+    )
+    .unwrap();
+    let config = EngineConfig {
+        channels,
+        max_block: 64,
+        ..EngineConfig::default()
+    };
+    let initial: Vec<u16> = (0..channels).map(|c| (c % 11) as u16).collect();
+    let (mut ctl, mut eng) = engine::build(&config, bank, &initial).unwrap();
+    let mut out = vec![0.0f32; 64 * channels];
+    let mut block = 0u64;
+    let mut group = c.benchmark_group("engine");
+    group.throughput(Throughput::Elements(64));
+    group.bench_function("64-frame block, 16 channels", |b| {
+        b.iter(|| {
+            // A 500 Hz reading every 96 frames on every channel, a step every 0.5 s.
+            if block % 3 == 0 {
+                let t = block as f32 * 64.0 / 48_000.0;
+                let f = if t % 0.5 < 0.3 { 700.0 } else { 0.0 };
+                for ch in 0..channels as u16 {
+                    let _ = ctl.send(TimedEvent::now(Event::Force {
+                        channel: ch,
+                        reading: SensorReading::single(f),
+                    }));
+                }
+            }
+            eng.process(black_box(&mut out), channels);
+            block += 1;
+        });
+    });
+    group.finish();
+}
+
+criterion_group!(benches, voice, engine_block);
+criterion_main!(benches);

@@ -1,0 +1,241 @@
+//! Offline rendering: the real-time engine run as fast as it goes, on timed events.
+//!
+//! The same [`Engine`](super::Engine) renders a WAV file and drives a device, so what a
+//! render sounds like is what a session feels like. Every event carries its frame, which
+//! makes the output independent of the block size (tested for 1, 7, 64 and 512 frames).
+
+use super::{EngineConfig, EngineError, Event, MaterialBank, TelemetrySnapshot, TimedEvent};
+use crate::force::gait::{self, GaitConfig, GaitError};
+use crate::force::track::ForceTrack;
+use crate::units::{SampleRate, Seconds};
+
+/// Events for a force track: each row's readings at the frame of its time, channel `k` of
+/// the track to engine channel `k`.
+#[must_use]
+pub fn track_events(track: &ForceTrack, rate: SampleRate) -> Vec<TimedEvent> {
+    let start = track.rows.first().map_or(0.0, |r| r.time.0.min(0.0));
+    let mut events = Vec::with_capacity(track.rows.len() * track.channels.len());
+    for row in &track.rows {
+        let frame = ((row.time.0 - start) * rate.hz()).round().max(0.0) as u64;
+        for (channel, reading) in row.readings.iter().enumerate() {
+            events.push(TimedEvent::at(
+                frame,
+                Event::Force {
+                    channel: channel as u16,
+                    reading: *reading,
+                },
+            ));
+        }
+    }
+    events
+}
+
+/// An offline render: interleaved samples and the engine's counters at the end.
+#[derive(Debug, Clone)]
+pub struct Render {
+    /// `frames x channels` samples, interleaved.
+    pub samples: Vec<f32>,
+    /// Channels per frame.
+    pub channels: usize,
+    /// The engine's counters.
+    pub telemetry: TelemetrySnapshot,
+}
+
+/// Renders `frames` frames of `events` (sorted by frame) in blocks of `block` frames.
+///
+/// # Errors
+/// An invalid configuration or initial material.
+pub fn render(
+    config: &EngineConfig,
+    bank: MaterialBank,
+    initial: &[u16],
+    events: &[TimedEvent],
+    frames: usize,
+    block: usize,
+) -> Result<Render, EngineError> {
+    let config = EngineConfig {
+        // Every event is queued before its block: make room for a block's worth.
+        queue_capacity: config.queue_capacity.max(events.len().min(1 << 20) + 1),
+        ..config.clone()
+    };
+    let (mut controller, mut engine) = super::build(&config, bank, initial)?;
+    let channels = config.channels;
+    let block = block.max(1);
+    let mut samples = vec![0.0f32; frames * channels];
+    let mut next = 0;
+    let mut done = 0;
+    while done < frames {
+        let n = block.min(frames - done);
+        let end = (done + n) as u64;
+        while next < events.len() && events[next].at.is_none_or(|at| at < end) {
+            controller.send(events[next])?;
+            next += 1;
+        }
+        engine.process(
+            &mut samples[done * channels..(done + n) * channels],
+            channels,
+        );
+        done += n;
+        controller.collect();
+    }
+    Ok(Render {
+        samples,
+        channels,
+        telemetry: controller.telemetry(),
+    })
+}
+
+/// One material's stretch of a walk.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WalkSegment {
+    /// The material.
+    pub material: String,
+    /// Its slot in the bank.
+    pub slot: u16,
+    /// When the walker steps onto it (mid-swing, with no foot on the ground).
+    pub start: Seconds,
+    /// When the walker leaves it.
+    pub end: Seconds,
+    /// The heel strikes on it.
+    pub strikes: Vec<Seconds>,
+}
+
+/// A walk across several materials, one foot (channel 0), ready to render.
+#[derive(Debug, Clone)]
+pub struct Walk {
+    /// The force track.
+    pub track: ForceTrack,
+    /// Force readings and material changes, sorted by frame.
+    pub events: Vec<TimedEvent>,
+    /// The materials in order.
+    pub segments: Vec<WalkSegment>,
+    /// Length of the walk in frames.
+    pub frames: usize,
+}
+
+/// Why a walk cannot be made.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum WalkError {
+    /// The gait is invalid.
+    #[error(transparent)]
+    Gait(#[from] GaitError),
+    /// A material is not in the bank.
+    #[error(transparent)]
+    Engine(#[from] EngineError),
+    /// No materials were given.
+    #[error("a walk needs at least one material")]
+    NoMaterials,
+}
+
+/// A walk of `steps` heel strikes on each of `materials`, one after the other, with the
+/// gait of `gait` (its `steps` and `channels` are replaced). Each material change falls
+/// in the middle of a swing, between a toe-off and the next heel strike.
+///
+/// # Errors
+/// An invalid gait or an unknown material.
+pub fn walk_across(
+    bank: &MaterialBank,
+    materials: &[&str],
+    steps: usize,
+    gait: &GaitConfig,
+    rate: SampleRate,
+) -> Result<Walk, WalkError> {
+    if materials.is_empty() {
+        return Err(WalkError::NoMaterials);
+    }
+    let slots = materials
+        .iter()
+        .map(|m| bank.slot(m))
+        .collect::<Result<Vec<_>, _>>()?;
+    let config = GaitConfig {
+        steps: steps.max(1) * materials.len(),
+        channels: 1,
+        ..gait.clone()
+    };
+    let g = gait::generate(&config)?;
+    let strikes = &g.strikes[0];
+    let toe_offs = &g.toe_offs[0];
+    let steps = steps.max(1);
+    let end_time = g.track.rows.last().map_or(Seconds(0.0), |r| r.time);
+    let mut events = track_events(&g.track, rate);
+    let mut segments = Vec::with_capacity(materials.len());
+    for (k, (name, slot)) in materials.iter().zip(&slots).enumerate() {
+        let first = k * steps;
+        let start = if k == 0 {
+            Seconds(0.0)
+        } else {
+            Seconds(0.5 * (toe_offs[first - 1].0 + strikes[first].0))
+        };
+        if k > 0 {
+            let frame = (start.0 * rate.hz()).round() as u64;
+            events.push(TimedEvent::at(
+                frame,
+                Event::Material {
+                    channel: 0,
+                    slot: *slot,
+                },
+            ));
+        }
+        if let Some(previous) = segments.last_mut() {
+            let previous: &mut WalkSegment = previous;
+            previous.end = start;
+        }
+        segments.push(WalkSegment {
+            material: (*name).to_string(),
+            slot: *slot,
+            start,
+            end: end_time,
+            strikes: strikes[first..first + steps].to_vec(),
+        });
+    }
+    // Stable: a material change at the frame of a reading comes after it.
+    events.sort_by_key(|e| e.at);
+    let frames = (end_time.0 * rate.hz()).ceil() as usize + 1;
+    Ok(Walk {
+        track: g.track,
+        events,
+        segments,
+        frames,
+    })
+}
+
+/// How closely a rendered stretch of one channel reproduces a material: the stretch goes
+/// through the fitting pipeline's analysis (conditioning, strike detection, the RMS
+/// strike spectrum, smoothing) exactly as a recording would, and the result is compared
+/// with the response measured from the material's recordings, as the RMS log-spectral
+/// distance in decibels over the model's fit grid. `gain` is the output gain the stretch
+/// was rendered with, taken back out so the comparison is with the recorded level.
+///
+/// # Errors
+/// The analysis fails (no strike found in the stretch, for one).
+pub fn segment_lsd(
+    samples: &[f32],
+    rate: SampleRate,
+    model: &crate::material::MaterialModel,
+    gain: crate::units::Decibels,
+) -> Result<f64, crate::analysis::AnalysisError> {
+    use crate::analysis::{AnalysisConfig, measure};
+    use crate::recording::Recording;
+    use crate::units::Hz;
+    let recording = Recording {
+        name: format!("{} (rendered)", model.name),
+        rate,
+        samples: samples.iter().map(|v| f64::from(*v)).collect(),
+        sha256: String::new(),
+    };
+    let config = AnalysisConfig {
+        rate: model.sample_rate,
+        band: model.band_hz,
+        ..AnalysisConfig::default()
+    };
+    let measured = measure(&[recording], &config)?;
+    let grid: Vec<Hz> = model.fit.grid_hz.iter().map(|f| Hz(*f)).collect();
+    let got = measured.on_grid(&grid);
+    let sum: f64 = got
+        .iter()
+        .zip(&model.fit.measured)
+        .map(|(a, b)| (20.0 * (a / b).log10() - gain.0).powi(2))
+        .sum();
+    Ok((sum / grid.len() as f64).sqrt())
+}
