@@ -55,8 +55,11 @@ pub trait EventSource: Send {
     /// # Errors
     /// An I/O failure of the underlying device. Malformed input is not an error: it is
     /// counted in [`SourceStats::rejected`] and skipped.
-    fn poll(&mut self, timeout: Duration, out: &mut dyn FnMut(Event))
-    -> Result<SourceState, IoError>;
+    fn poll(
+        &mut self,
+        timeout: Duration,
+        out: &mut dyn FnMut(Event),
+    ) -> Result<SourceState, IoError>;
 
     /// Counts so far.
     fn stats(&self) -> SourceStats;
