@@ -1,1 +1,1010 @@
-//! (Being written: see issue 3.)
+//! Vibration to an audio device through cpal (ALSA; JACK with the `jack` feature).
+//!
+//! [`AudioOutput::start`] opens a device, picks a stream configuration and calls a render
+//! callback from the device's audio thread until [`AudioOutput::stop`]. The callback has
+//! the engine's signature, `FnMut(&mut [f32], usize)`: interleaved output (frames x
+//! channels) and the channel count. It must fill the whole slice and never allocate,
+//! lock or block; it may be called with fewer frames than the device buffer (see below).
+//!
+//! # Choosing the stream
+//!
+//! The device is `AudioConfig::device`, matched in this order against the host's output
+//! devices: the exact device id (`null`, `hw:CARD=1,DEV=0`), the id in ALSA's short form
+//! (`hw:1` means `hw:CARD=1,DEV=0`), the exact description, then the first id or
+//! description that contains it (case-insensitive). [`list_devices`] shows the
+//! candidates.
+//!
+//! Among the device's configurations with the requested channels and rate, 32-bit float
+//! is preferred; otherwise the best remaining PCM format, ranked by resolution. A
+//! requested buffer size must lie in the device's range; without one the host's default
+//! is used. Anything the device cannot do is an [`IoError::Unsupported`] that lists what
+//! it can do.
+//!
+//! For a device that does not take `f32`, the callback renders into a scratch buffer
+//! allocated at start-up, and the samples are converted (clamped to full scale for
+//! integer formats). The scratch is sized
+//! from the buffer size (requested, or the device's maximum capped at
+//! [`MAX_SCRATCH_FRAMES`]); a larger device buffer is rendered in several whole-frame
+//! chunks rather than allocating on the audio thread.
+//!
+//! # What it measured
+//!
+//! The audio thread records into atomics (no locks), read by [`AudioOutput::stats`]:
+//! callbacks, frames, the largest buffer, late callbacks (more than 1.5 buffer durations
+//! after the previous one, on the host's clock), host errors, and the output latency:
+//! the host's playback instant minus its callback instant, as the median of the last
+//! [`LATENCY_WINDOW`] callbacks.
+//!
+//! # JACK
+//!
+//! cpal's JACK host does not start a server: one must be running before [`list_devices`]
+//! or [`AudioOutput::start`] (otherwise there is no output device). The rate and buffer
+//! size are the server's; a request for anything else is refused with the server's
+//! values. Without a sound card, the dummy back-end is paced like a device
+//! (`.ci/audio-setup` starts it):
+//!
+//! ```text
+//! jackd --realtime -d dummy -r 48000 -p 64 &       # where SCHED_FIFO is allowed
+//! jackd --no-realtime -d dummy -r 48000 -p 64 &    # otherwise
+//! ```
+//!
+//! Real-time scheduling decides whether the pace holds on a busy machine: on 2 cores with
+//! four busy processes, a `--no-realtime` server delivered 0.85x real time with ~80 xruns
+//! a second, a `--realtime` one 1.00x with one or two. Root in this project's container may use
+//! it; `chrt -f 10 true` tells. The dummy back-end reserves no sound card, so `JACK_NO_AUDIO_RESERVATION` is not
+//! needed. Xruns are counted in [`StreamStats::xruns`], apart from real errors.
+
+use std::fmt;
+use std::str::FromStr;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Duration;
+
+use cpal::traits::{DeviceTrait, HostTrait, StreamTrait};
+use cpal::{
+    BufferSize, FromSample, OutputCallbackInfo, SizedSample, StreamConfig, StreamInstant,
+    SupportedBufferSize, SupportedStreamConfigRange,
+};
+
+use super::IoError;
+use crate::units::{SampleRate, Seconds};
+
+/// The device's sample format, as cpal names it.
+pub use cpal::SampleFormat;
+
+/// The largest scratch buffer, in frames, allocated for a non-float device whose buffer
+/// size was not requested. Bigger device buffers are rendered in chunks of this size.
+pub const MAX_SCRATCH_FRAMES: u32 = 8192;
+
+/// How many recent callbacks the latency median is taken over.
+pub const LATENCY_WINDOW: usize = 64;
+
+/// How often (in callbacks) the latency median is recomputed once the window is full.
+const LATENCY_PUBLISH_EVERY: u64 = 16;
+
+/// How long to wait for a host to build a stream. JACK builds on a helper thread and
+/// gives up after this; ALSA uses it as its poll timeout to notice a stalled device.
+const BUILD_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// Rates listed by [`list_devices`] when a device offers a continuous range.
+const STANDARD_RATES: [u32; 11] = [
+    8_000, 11_025, 16_000, 22_050, 32_000, 44_100, 48_000, 88_200, 96_000, 176_400, 192_000,
+];
+
+/// Which cpal host (audio system) to use.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub enum AudioHost {
+    /// The platform's default host (ALSA on Linux).
+    #[default]
+    Default,
+    /// ALSA, Linux's kernel audio interface.
+    Alsa,
+    /// A running JACK server.
+    #[cfg(feature = "jack")]
+    Jack,
+}
+
+impl fmt::Display for AudioHost {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::Default => "default",
+            Self::Alsa => "ALSA",
+            #[cfg(feature = "jack")]
+            Self::Jack => "JACK",
+        })
+    }
+}
+
+impl FromStr for AudioHost {
+    type Err = IoError;
+
+    /// Parses `default`, `alsa` or `jack` (any case), for a `--host` flag.
+    fn from_str(s: &str) -> Result<Self, IoError> {
+        match s.to_ascii_lowercase().as_str() {
+            "default" => Ok(Self::Default),
+            "alsa" => Ok(Self::Alsa),
+            #[cfg(feature = "jack")]
+            "jack" => Ok(Self::Jack),
+            #[cfg(not(feature = "jack"))]
+            "jack" => Err(IoError::Unsupported {
+                device: s.to_string(),
+                reason: "this build has no JACK support (cargo feature `jack`)".into(),
+            }),
+            _ => Err(IoError::Unsupported {
+                device: s.to_string(),
+                reason: "unknown audio host; expected default, alsa or jack".into(),
+            }),
+        }
+    }
+}
+
+/// What to open: host, device and stream format.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct AudioConfig {
+    /// The audio system.
+    pub host: AudioHost,
+    /// The device: an id, a description or a part of either (`"hw:1"`, `"null"`,
+    /// `"default"`); `None` for the host's default output.
+    pub device: Option<String>,
+    /// Interleaved output channels.
+    pub channels: u16,
+    /// Sample rate; the device must support it (nothing is resampled here).
+    pub rate: SampleRate,
+    /// Frames per callback; `None` for the host's default.
+    pub buffer_frames: Option<u32>,
+}
+
+impl Default for AudioConfig {
+    /// Stereo at 48 kHz on the default device, default buffer size.
+    fn default() -> Self {
+        Self {
+            host: AudioHost::Default,
+            device: None,
+            channels: 2,
+            rate: SampleRate(48_000),
+            buffer_frames: None,
+        }
+    }
+}
+
+/// One output device, for `--list-devices`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DeviceInfo {
+    /// The id to pass as [`AudioConfig::device`] (`"hw:CARD=0,DEV=0"`, `"null"`).
+    pub name: String,
+    /// What the host calls it (`"HDA Intel PCH, ALC892 Analog"`).
+    pub description: String,
+    /// The most output channels of any configuration.
+    pub max_channels: u16,
+    /// Rates it accepts: the standard rates inside its ranges, and any single-rate
+    /// configuration (a JACK server's rate).
+    pub rates: Vec<SampleRate>,
+    /// Smallest and largest buffer in frames, if the host says.
+    pub buffer_frames: Option<(u32, u32)>,
+    /// Sample formats it offers.
+    pub formats: Vec<SampleFormat>,
+    /// Why its configurations could not be read (busy, no permission); the other fields
+    /// are then empty.
+    pub problem: Option<String>,
+}
+
+/// What a started stream got.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct StreamInfo {
+    /// The host that was used (never [`AudioHost::Default`]).
+    pub host: AudioHost,
+    /// The device id.
+    pub device: String,
+    /// Sample rate.
+    pub rate: SampleRate,
+    /// Interleaved channels, as passed to the render callback.
+    pub channels: u16,
+    /// Frames per callback as reported by the host, else as requested; `None` if neither.
+    pub buffer_frames: Option<u32>,
+    /// The device's sample format; anything but `F32` is converted from `f32`.
+    pub sample_format: SampleFormat,
+}
+
+/// What the audio thread has seen so far.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StreamStats {
+    /// Callbacks from the device.
+    pub callbacks: u64,
+    /// Frames rendered.
+    pub frames: u64,
+    /// The largest callback, in frames.
+    pub max_callback_frames: u64,
+    /// Host playback instant minus callback instant: the median over the last
+    /// [`LATENCY_WINDOW`] callbacks, `None` until the host has given a usable timestamp.
+    pub output_latency: Option<Seconds>,
+    /// Callbacks that came more than 1.5 buffer durations after the previous one.
+    pub late_callbacks: u64,
+    /// Errors reported by the host other than xruns (device lost, backend errors).
+    pub stream_errors: u64,
+    /// Buffer under- or overruns reported by the host.
+    pub xruns: u64,
+}
+
+/// A running output stream. Dropping it stops the stream as [`AudioOutput::stop`] does.
+pub struct AudioOutput {
+    stream: cpal::Stream,
+    info: StreamInfo,
+    shared: Arc<Shared>,
+}
+
+impl fmt::Debug for AudioOutput {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("AudioOutput")
+            .field("info", &self.info)
+            .field("stats", &self.stats())
+            .finish_non_exhaustive()
+    }
+}
+
+impl AudioOutput {
+    /// Opens the device in `config` and starts calling `render` from its audio thread.
+    ///
+    /// `render(buffer, channels)` must fill all of `buffer` (interleaved, a whole number of
+    /// frames) without allocating, locking or blocking.
+    ///
+    /// # Errors
+    /// - [`IoError::Open`]: the host is unavailable, no device matches (the message lists
+    ///   the devices), or the stream could not be built or started.
+    /// - [`IoError::Unsupported`]: zero channels, rate or buffer size, or a combination
+    ///   the device does not offer (the message lists what it offers).
+    pub fn start(
+        config: &AudioConfig,
+        render: impl FnMut(&mut [f32], usize) + Send + 'static,
+    ) -> Result<Self, IoError> {
+        let (host, host_kind) = open_host(config.host)?;
+        let device = find_device(&host, host_kind, config.device.as_deref())?;
+        let name = device_id(&device);
+        let label = format!("{host_kind} device \"{name}\"");
+        let chosen = choose_config(&device, &label, config)?;
+
+        let shared = Arc::new(Shared::default());
+        let stream = build_stream(&device, &chosen, Arc::clone(&shared), render).map_err(|e| {
+            IoError::Open {
+                device: label.clone(),
+                reason: format!(
+                    "cannot build a {} channel, {}, {} output stream: {e}",
+                    chosen.stream.channels, config.rate, chosen.format
+                ),
+            }
+        })?;
+        stream.play().map_err(|e| IoError::Open {
+            device: label.clone(),
+            reason: format!("cannot start the stream: {e}"),
+        })?;
+
+        let buffer_frames = stream
+            .buffer_size()
+            .ok()
+            .filter(|&n| n > 0)
+            .or(config.buffer_frames);
+        let info = StreamInfo {
+            host: host_kind,
+            device: name,
+            rate: config.rate,
+            channels: config.channels,
+            buffer_frames,
+            sample_format: chosen.format,
+        };
+        Ok(Self {
+            stream,
+            info,
+            shared,
+        })
+    }
+
+    /// What was opened.
+    #[must_use]
+    pub fn info(&self) -> &StreamInfo {
+        &self.info
+    }
+
+    /// Counts so far, read without disturbing the audio thread.
+    #[must_use]
+    pub fn stats(&self) -> StreamStats {
+        self.shared.snapshot()
+    }
+
+    /// Stops the stream, waits for the audio thread to let go of the callback, and
+    /// returns the final counts.
+    pub fn stop(self) -> StreamStats {
+        // Pausing first makes the host output silence rather than cut off mid-buffer on
+        // hosts that keep running until the stream is torn down. Failure to pause changes
+        // nothing: dropping the stream stops it anyway.
+        let _ = self.stream.pause();
+        drop(self.stream);
+        self.shared.snapshot()
+    }
+}
+
+/// Lists the output devices of `host` with what each offers.
+///
+/// A device whose configurations cannot be read (busy, no permission) is listed with
+/// [`DeviceInfo::problem`] set rather than failing the whole list.
+///
+/// # Errors
+/// [`IoError::Open`] if the host is unavailable or cannot enumerate its devices.
+pub fn list_devices(host: AudioHost) -> Result<Vec<DeviceInfo>, IoError> {
+    let (host, kind) = open_host(host)?;
+    let devices = output_devices(&host).map_err(|e| IoError::Open {
+        device: kind.to_string(),
+        reason: format!("cannot list output devices: {e}"),
+    })?;
+    Ok(devices.iter().map(describe_device).collect())
+}
+
+/// The host's output devices. cpal's own filter keeps JACK's input device, whose
+/// configurations it lists for both directions; its description knows better.
+fn output_devices(host: &cpal::Host) -> Result<Vec<cpal::Device>, cpal::Error> {
+    Ok(host.output_devices()?.filter(is_output).collect())
+}
+
+fn is_output(device: &cpal::Device) -> bool {
+    device.supports_output()
+        && !matches!(device.description(), Ok(d) if d.direction() == cpal::DeviceDirection::Input)
+}
+
+fn describe_device(device: &cpal::Device) -> DeviceInfo {
+    let mut info = DeviceInfo {
+        name: device_id(device),
+        description: device_description(device),
+        max_channels: 0,
+        rates: Vec::new(),
+        buffer_frames: None,
+        formats: Vec::new(),
+        problem: None,
+    };
+    let ranges: Vec<SupportedStreamConfigRange> = match device.supported_output_configs() {
+        Ok(r) => r.filter(|r| !r.sample_format().is_dsd()).collect(),
+        Err(e) => {
+            info.problem = Some(e.to_string());
+            return info;
+        }
+    };
+    info.max_channels = ranges.iter().map(|r| r.channels()).max().unwrap_or(0);
+    let mut rates: Vec<u32> = STANDARD_RATES
+        .into_iter()
+        .filter(|&rate| ranges.iter().any(|r| r.contains_rate(rate)))
+        .chain(
+            ranges
+                .iter()
+                .filter(|r| r.min_sample_rate() == r.max_sample_rate())
+                .map(|r| r.min_sample_rate()),
+        )
+        .collect();
+    rates.sort_unstable();
+    rates.dedup();
+    info.rates = rates.into_iter().map(SampleRate).collect();
+    info.buffer_frames = ranges
+        .iter()
+        .filter_map(|r| match *r.buffer_size() {
+            SupportedBufferSize::Range { min, max } => Some((min, max)),
+            SupportedBufferSize::Unknown => None,
+        })
+        .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)));
+    for r in &ranges {
+        if !info.formats.contains(&r.sample_format()) {
+            info.formats.push(r.sample_format());
+        }
+    }
+    info
+}
+
+/// Resolves the host; `Default` becomes the concrete host so that [`StreamInfo`] says
+/// what was used.
+fn open_host(kind: AudioHost) -> Result<(cpal::Host, AudioHost), IoError> {
+    let (id, kind) = match kind {
+        // cpal::default_host() panics when ALSA cannot be initialised; going through the
+        // id gives an error instead. Without the pipewire/pulseaudio features (not
+        // enabled here) ALSA is exactly what default_host() would pick on Linux.
+        AudioHost::Default | AudioHost::Alsa => (alsa_host_id()?, AudioHost::Alsa),
+        #[cfg(feature = "jack")]
+        AudioHost::Jack => (cpal::HostId::Jack, AudioHost::Jack),
+    };
+    let host = cpal::host_from_id(id).map_err(|e| IoError::Open {
+        device: kind.to_string(),
+        reason: format!("audio host unavailable: {e}"),
+    })?;
+    Ok((host, kind))
+}
+
+fn alsa_host_id() -> Result<cpal::HostId, IoError> {
+    cpal::HostId::from_str("alsa").map_err(|_| IoError::Open {
+        device: AudioHost::Alsa.to_string(),
+        reason: "ALSA is not available on this platform".into(),
+    })
+}
+
+fn device_id(device: &cpal::Device) -> String {
+    match device.id() {
+        Ok(id) => id.id().to_string(),
+        Err(_) => device_description(device),
+    }
+}
+
+fn device_description(device: &cpal::Device) -> String {
+    device
+        .description()
+        .map(|d| d.name().to_string())
+        .unwrap_or_default()
+}
+
+fn find_device(
+    host: &cpal::Host,
+    kind: AudioHost,
+    wanted: Option<&str>,
+) -> Result<cpal::Device, IoError> {
+    let no_device = |reason: String| IoError::Open {
+        device: match wanted {
+            Some(w) => format!("{kind} device \"{w}\""),
+            None => format!("{kind} default output device"),
+        },
+        reason,
+    };
+    let server_hint = match kind {
+        #[cfg(feature = "jack")]
+        AudioHost::Jack => " (is a JACK server running? cpal does not start one)",
+        _ => "",
+    };
+    let Some(wanted) = wanted else {
+        return host
+            .default_output_device()
+            .ok_or_else(|| no_device(format!("the host has no output device{server_hint}")));
+    };
+
+    let devices =
+        output_devices(host).map_err(|e| no_device(format!("cannot list output devices: {e}")))?;
+    let ids: Vec<String> = devices.iter().map(device_id).collect();
+    let descriptions: Vec<String> = devices.iter().map(device_description).collect();
+
+    if let Some(i) = ids.iter().position(|id| id == wanted) {
+        return Ok(devices[i].clone());
+    }
+    // ALSA's "default" is not always among the enumerated devices, but always opens.
+    if let Some(device) = host.default_output_device()
+        && device_id(&device) == wanted
+    {
+        return Ok(device);
+    }
+    // ALSA ids are canonicalised by the host ("hw:1" -> "hw:CARD=1,DEV=0").
+    if let Some(device) = host.device_by_id(&cpal::DeviceId::new(host.id(), wanted))
+        && is_output(&device)
+    {
+        return Ok(device);
+    }
+    if let Some(i) = descriptions
+        .iter()
+        .position(|d| d.eq_ignore_ascii_case(wanted))
+    {
+        return Ok(devices[i].clone());
+    }
+    let needle = wanted.to_lowercase();
+    if let Some(i) = (0..devices.len()).find(|&i| {
+        ids[i].to_lowercase().contains(&needle) || descriptions[i].to_lowercase().contains(&needle)
+    }) {
+        return Ok(devices[i].clone());
+    }
+    let available = if ids.is_empty() {
+        format!("the host has no output device{server_hint}")
+    } else {
+        format!("no such output device; available: {}", ids.join(", "))
+    };
+    Err(no_device(available))
+}
+
+/// The configuration picked for a device.
+struct Chosen {
+    stream: StreamConfig,
+    format: SampleFormat,
+    /// Frames of `f32` scratch for converting formats.
+    scratch_frames: usize,
+}
+
+fn choose_config(
+    device: &cpal::Device,
+    label: &str,
+    config: &AudioConfig,
+) -> Result<Chosen, IoError> {
+    let unsupported = |reason: String| IoError::Unsupported {
+        device: label.to_string(),
+        reason,
+    };
+    if config.channels == 0 {
+        return Err(unsupported("zero channels requested".into()));
+    }
+    if config.rate.0 == 0 {
+        return Err(unsupported("a sample rate of 0 Hz requested".into()));
+    }
+    if config.buffer_frames == Some(0) {
+        return Err(unsupported("a buffer of 0 frames requested".into()));
+    }
+
+    let ranges: Vec<SupportedStreamConfigRange> = device
+        .supported_output_configs()
+        .map_err(|e| IoError::Open {
+            device: label.to_string(),
+            reason: format!("cannot read its output configurations: {e}"),
+        })?
+        .filter(|r| format_rank(r.sample_format()).is_some())
+        .collect();
+    if ranges.is_empty() {
+        return Err(unsupported("it offers no PCM output configuration".into()));
+    }
+
+    let with_channels: Vec<&SupportedStreamConfigRange> = ranges
+        .iter()
+        .filter(|r| r.channels() == config.channels)
+        .collect();
+    if with_channels.is_empty() {
+        let offered: Vec<u32> = ranges.iter().map(|r| u32::from(r.channels())).collect();
+        return Err(unsupported(format!(
+            "{} channels not supported; it offers {} channels",
+            config.channels,
+            spans(offered)
+        )));
+    }
+    let with_rate: Vec<&SupportedStreamConfigRange> = with_channels
+        .iter()
+        .copied()
+        .filter(|r| r.contains_rate(config.rate.0))
+        .collect();
+    if with_rate.is_empty() {
+        return Err(unsupported(format!(
+            "{} not supported with {} channels; it offers {}",
+            config.rate,
+            config.channels,
+            rate_spans(&with_channels)
+        )));
+    }
+    let fits_buffer =
+        |r: &&SupportedStreamConfigRange| match (config.buffer_frames, r.buffer_size()) {
+            (None, _) | (Some(_), SupportedBufferSize::Unknown) => true,
+            (Some(n), &SupportedBufferSize::Range { min, max }) => (min..=max).contains(&n),
+        };
+    let Some(best) = with_rate
+        .iter()
+        .copied()
+        .filter(fits_buffer)
+        .min_by_key(|r| format_rank(r.sample_format()))
+    else {
+        let offered: Vec<String> = with_rate
+            .iter()
+            .filter_map(|r| match *r.buffer_size() {
+                SupportedBufferSize::Range { min, max } if min == max => Some(format!("{min}")),
+                SupportedBufferSize::Range { min, max } => Some(format!("{min}-{max}")),
+                SupportedBufferSize::Unknown => None,
+            })
+            .collect();
+        return Err(unsupported(format!(
+            "a buffer of {} frames not supported at {} with {} channels; it offers {} frames",
+            config.buffer_frames.unwrap_or(0),
+            config.rate,
+            config.channels,
+            dedup_join(offered)
+        )));
+    };
+
+    let buffer_size = match config.buffer_frames {
+        Some(n) => BufferSize::Fixed(n),
+        None => BufferSize::Default,
+    };
+    let scratch_frames = match (config.buffer_frames, best.buffer_size()) {
+        (Some(n), _) => n,
+        (None, &SupportedBufferSize::Range { max, .. }) => max.min(MAX_SCRATCH_FRAMES),
+        (None, SupportedBufferSize::Unknown) => MAX_SCRATCH_FRAMES,
+    };
+    Ok(Chosen {
+        stream: StreamConfig {
+            channels: config.channels,
+            sample_rate: config.rate.0,
+            buffer_size,
+        },
+        format: best.sample_format(),
+        scratch_frames: usize::try_from(scratch_frames.max(1)).unwrap_or(1),
+    })
+}
+
+/// Preference among PCM formats, best first; `None` for formats that cannot carry PCM.
+fn format_rank(format: SampleFormat) -> Option<u8> {
+    use SampleFormat as F;
+    let rank = match format {
+        F::F32 => 0,
+        F::F64 => 1,
+        F::I32 => 2,
+        F::U32 => 3,
+        F::I24 => 4,
+        F::U24 => 5,
+        F::I16 => 6,
+        F::U16 => 7,
+        F::I64 => 8,
+        F::U64 => 9,
+        F::I8 => 10,
+        F::U8 => 11,
+        _ => return None,
+    };
+    Some(rank)
+}
+
+/// `[1, 2, 3, 6]` -> `"1-3, 6"`.
+fn spans(mut values: Vec<u32>) -> String {
+    values.sort_unstable();
+    values.dedup();
+    let mut out: Vec<String> = Vec::new();
+    let mut i = 0;
+    while i < values.len() {
+        let mut j = i;
+        while j + 1 < values.len() && values[j + 1] == values[j] + 1 {
+            j += 1;
+        }
+        out.push(if i == j {
+            values[i].to_string()
+        } else {
+            format!("{}-{}", values[i], values[j])
+        });
+        i = j + 1;
+    }
+    out.join(", ")
+}
+
+fn rate_spans(ranges: &[&SupportedStreamConfigRange]) -> String {
+    let items: Vec<String> = ranges
+        .iter()
+        .map(|r| {
+            let (lo, hi) = (r.min_sample_rate(), r.max_sample_rate());
+            if lo == hi {
+                format!("{lo} Hz")
+            } else {
+                format!("{lo}-{hi} Hz")
+            }
+        })
+        .collect();
+    dedup_join(items)
+}
+
+fn dedup_join(mut items: Vec<String>) -> String {
+    items.sort();
+    items.dedup();
+    if items.is_empty() {
+        "no size the host will say".into()
+    } else {
+        items.join(", ")
+    }
+}
+
+fn build_stream(
+    device: &cpal::Device,
+    chosen: &Chosen,
+    shared: Arc<Shared>,
+    render: impl FnMut(&mut [f32], usize) + Send + 'static,
+) -> Result<cpal::Stream, cpal::Error> {
+    use SampleFormat as F;
+    let args = (device, chosen, shared, render);
+    match chosen.format {
+        F::F32 => build_f32(args),
+        F::F64 => build_converted::<f64, _>(args),
+        F::I32 => build_converted::<i32, _>(args),
+        F::U32 => build_converted::<u32, _>(args),
+        F::I24 => build_converted::<cpal::I24, _>(args),
+        F::U24 => build_converted::<cpal::U24, _>(args),
+        F::I16 => build_converted::<i16, _>(args),
+        F::U16 => build_converted::<u16, _>(args),
+        F::I64 => build_converted::<i64, _>(args),
+        F::U64 => build_converted::<u64, _>(args),
+        F::I8 => build_converted::<i8, _>(args),
+        F::U8 => build_converted::<u8, _>(args),
+        // choose_config only picks formats that format_rank accepts.
+        other => Err(cpal::Error::with_message(
+            cpal::ErrorKind::UnsupportedConfig,
+            format!("sample format {other} cannot carry PCM"),
+        )),
+    }
+}
+
+type BuildArgs<'a, R> = (&'a cpal::Device, &'a Chosen, Arc<Shared>, R);
+
+fn error_counter(shared: Arc<Shared>) -> impl FnMut(cpal::Error) + Send + 'static {
+    move |e: cpal::Error| {
+        let counter = if e.kind() == cpal::ErrorKind::Xrun {
+            &shared.xruns
+        } else {
+            &shared.stream_errors
+        };
+        counter.fetch_add(1, Ordering::Relaxed);
+    }
+}
+
+fn build_f32<R>(
+    (device, chosen, shared, mut render): BuildArgs<'_, R>,
+) -> Result<cpal::Stream, cpal::Error>
+where
+    R: FnMut(&mut [f32], usize) + Send + 'static,
+{
+    let channels = usize::from(chosen.stream.channels);
+    let mut meter = Meter::new(Arc::clone(&shared), chosen.stream.sample_rate);
+    device.build_output_stream(
+        chosen.stream,
+        move |data: &mut [f32], info: &OutputCallbackInfo| {
+            meter.record(data.len() / channels, info);
+            render(data, channels);
+        },
+        error_counter(shared),
+        Some(BUILD_TIMEOUT),
+    )
+}
+
+fn build_converted<T, R>(
+    (device, chosen, shared, mut render): BuildArgs<'_, R>,
+) -> Result<cpal::Stream, cpal::Error>
+where
+    T: SizedSample + FromSample<f32> + Send + 'static,
+    R: FnMut(&mut [f32], usize) + Send + 'static,
+{
+    let channels = usize::from(chosen.stream.channels);
+    let mut scratch = vec![0.0_f32; chosen.scratch_frames * channels];
+    let mut meter = Meter::new(Arc::clone(&shared), chosen.stream.sample_rate);
+    device.build_output_stream(
+        chosen.stream,
+        move |data: &mut [T], info: &OutputCallbackInfo| {
+            meter.record(data.len() / channels, info);
+            render_converted(data, &mut scratch, channels, &mut render);
+        },
+        error_counter(shared),
+        Some(BUILD_TIMEOUT),
+    )
+}
+
+/// Renders `out` through the `f32` scratch buffer, in whole-frame chunks when `out` is
+/// larger than the scratch. `scratch.len()` is a non-zero multiple of `channels`.
+fn render_converted<T, R>(out: &mut [T], scratch: &mut [f32], channels: usize, render: &mut R)
+where
+    T: SizedSample + FromSample<f32>,
+    R: FnMut(&mut [f32], usize),
+{
+    for block in out.chunks_mut(scratch.len()) {
+        let samples = &mut scratch[..block.len()];
+        render(samples, channels);
+        for (o, &x) in block.iter_mut().zip(samples.iter()) {
+            *o = to_device(x);
+        }
+    }
+}
+
+/// The largest `f32` below 1.0, so that full scale stays inside a 24-bit integer.
+const BELOW_ONE: f32 = 1.0 - f32::EPSILON / 2.0;
+
+/// One sample to the device format. Integer formats are clamped to full scale first:
+/// the conversion multiplies by 2^(bits-1), and +1.0 would overflow a 24-bit container
+/// into a negative full-scale value. NaN becomes silence.
+fn to_device<T: SizedSample + FromSample<f32>>(x: f32) -> T {
+    if T::FORMAT.is_float() {
+        T::from_sample(x)
+    } else if x.is_nan() {
+        T::EQUILIBRIUM
+    } else {
+        T::from_sample(x.clamp(-1.0, BELOW_ONE))
+    }
+}
+
+/// Counters shared between the audio thread and [`AudioOutput`].
+struct Shared {
+    callbacks: AtomicU64,
+    frames: AtomicU64,
+    max_callback_frames: AtomicU64,
+    latency_nanos: AtomicU64,
+    late_callbacks: AtomicU64,
+    stream_errors: AtomicU64,
+    xruns: AtomicU64,
+}
+
+/// `latency_nanos` before the host has given a usable timestamp.
+const NO_LATENCY: u64 = u64::MAX;
+
+impl Default for Shared {
+    fn default() -> Self {
+        Self {
+            callbacks: AtomicU64::new(0),
+            frames: AtomicU64::new(0),
+            max_callback_frames: AtomicU64::new(0),
+            latency_nanos: AtomicU64::new(NO_LATENCY),
+            late_callbacks: AtomicU64::new(0),
+            stream_errors: AtomicU64::new(0),
+            xruns: AtomicU64::new(0),
+        }
+    }
+}
+
+impl Shared {
+    fn snapshot(&self) -> StreamStats {
+        let latency = self.latency_nanos.load(Ordering::Relaxed);
+        StreamStats {
+            callbacks: self.callbacks.load(Ordering::Relaxed),
+            frames: self.frames.load(Ordering::Relaxed),
+            max_callback_frames: self.max_callback_frames.load(Ordering::Relaxed),
+            output_latency: (latency != NO_LATENCY).then_some(Seconds(latency as f64 * 1e-9)),
+            late_callbacks: self.late_callbacks.load(Ordering::Relaxed),
+            stream_errors: self.stream_errors.load(Ordering::Relaxed),
+            xruns: self.xruns.load(Ordering::Relaxed),
+        }
+    }
+}
+
+/// The audio thread's side of [`Shared`]: timing state that only it touches, so it
+/// needs no synchronisation, plus fixed arrays for the latency median.
+struct Meter {
+    shared: Arc<Shared>,
+    rate: f64,
+    previous: Option<(StreamInstant, usize)>,
+    latencies: [u64; LATENCY_WINDOW],
+    sorted: [u64; LATENCY_WINDOW],
+    filled: usize,
+    next: usize,
+    measured: u64,
+}
+
+impl Meter {
+    fn new(shared: Arc<Shared>, rate: u32) -> Self {
+        Self {
+            shared,
+            rate: f64::from(rate),
+            previous: None,
+            latencies: [0; LATENCY_WINDOW],
+            sorted: [0; LATENCY_WINDOW],
+            filled: 0,
+            next: 0,
+            measured: 0,
+        }
+    }
+
+    fn record(&mut self, frames: usize, info: &OutputCallbackInfo) {
+        let s = &self.shared;
+        let frames_u64 = frames as u64;
+        s.callbacks.fetch_add(1, Ordering::Relaxed);
+        s.frames.fetch_add(frames_u64, Ordering::Relaxed);
+        s.max_callback_frames
+            .fetch_max(frames_u64, Ordering::Relaxed);
+
+        let timestamp = info.timestamp();
+        if let Some((instant, previous_frames)) = self.previous
+            && let Some(interval) = timestamp.callback.checked_duration_since(instant)
+        {
+            let budget = previous_frames as f64 / self.rate;
+            if interval.as_secs_f64() > 1.5 * budget {
+                s.late_callbacks.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        self.previous = Some((timestamp.callback, frames));
+
+        // A host without a playback estimate gives an instant before the callback.
+        if let Some(latency) = timestamp
+            .playback
+            .checked_duration_since(timestamp.callback)
+        {
+            self.push_latency(u64::try_from(latency.as_nanos()).unwrap_or(NO_LATENCY - 1));
+        }
+    }
+
+    fn push_latency(&mut self, nanos: u64) {
+        self.latencies[self.next] = nanos;
+        self.next = (self.next + 1) % LATENCY_WINDOW;
+        self.filled = (self.filled + 1).min(LATENCY_WINDOW);
+        self.measured += 1;
+        // Sorting 64 numbers is cheap, but there is no need to do it every callback once
+        // the window is full; early on it is done every time so that short runs report.
+        if self.filled < LATENCY_WINDOW || self.measured % LATENCY_PUBLISH_EVERY == 0 {
+            let window = &mut self.sorted[..self.filled];
+            window.copy_from_slice(&self.latencies[..self.filled]);
+            window.sort_unstable();
+            let median = window[window.len() / 2];
+            self.shared
+                .latency_nanos
+                .store(median.min(NO_LATENCY - 1), Ordering::Relaxed);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cpal::OutputStreamTimestamp;
+
+    fn info(callback_micros: u64, latency_micros: u64) -> OutputCallbackInfo {
+        let callback = StreamInstant::from_micros(callback_micros);
+        OutputCallbackInfo::new(OutputStreamTimestamp {
+            callback,
+            playback: StreamInstant::from_micros(callback_micros + latency_micros),
+        })
+    }
+
+    #[test]
+    fn conversion_renders_large_buffers_in_whole_frame_chunks() {
+        let channels = 2;
+        let mut scratch = vec![0.0_f32; 3 * channels];
+        let mut out = vec![0_i16; 8 * channels];
+        let mut calls = Vec::new();
+        let mut next = 0.0_f32;
+        let mut render = |buf: &mut [f32], ch: usize| {
+            calls.push((buf.len(), ch));
+            for x in buf.iter_mut() {
+                *x = next;
+                next += 0.01;
+            }
+        };
+        render_converted(&mut out, &mut scratch, channels, &mut render);
+        assert_eq!(calls, vec![(6, 2), (6, 2), (4, 2)]);
+        for (i, &o) in out.iter().enumerate() {
+            let expected = (i as f32 * 0.01 * 32768.0) as i16;
+            assert!((o - expected).abs() <= 1, "sample {i}: {o} vs {expected}");
+        }
+    }
+
+    #[test]
+    fn integer_conversion_clamps_and_silences_nan() {
+        assert_eq!(to_device::<i16>(2.0), i16::MAX);
+        assert_eq!(to_device::<i16>(-2.0), i16::MIN);
+        assert_eq!(to_device::<i16>(f32::NAN), 0);
+        assert_eq!(to_device::<u16>(f32::NAN), 32_768);
+        // Full scale must not wrap to negative in a 24-bit container.
+        assert_eq!(to_device::<cpal::I24>(1.0).inner(), (1 << 23) - 1);
+        assert_eq!(to_device::<cpal::I24>(-1.0).inner(), -(1 << 23));
+        assert!(to_device::<i32>(1.0) > i32::MAX - 256);
+        // Floats pass through untouched.
+        assert_eq!(to_device::<f64>(1.5), 1.5);
+    }
+
+    #[test]
+    fn meter_counts_late_callbacks_and_reports_the_median_latency() {
+        let shared = Arc::new(Shared::default());
+        let mut meter = Meter::new(Arc::clone(&shared), 48_000);
+        // 48 frames = 1 ms per buffer; late means more than 1.5 ms since the previous.
+        let mut t = 0;
+        for (step, latency) in [(0, 2_000), (1_000, 3_000), (1_400, 2_500), (1_600, 2_000)] {
+            t += step;
+            meter.record(48, &info(t, latency));
+        }
+        let stats = shared.snapshot();
+        assert_eq!(stats.callbacks, 4);
+        assert_eq!(stats.frames, 192);
+        assert_eq!(stats.max_callback_frames, 48);
+        assert_eq!(stats.late_callbacks, 1);
+        // Sorted 2.0, 2.0, 2.5, 3.0 ms: the upper median.
+        let latency = stats.output_latency.expect("latency");
+        assert!((latency.0 - 2.5e-3).abs() < 1e-9, "{latency}");
+    }
+
+    #[test]
+    fn meter_keeps_only_the_recent_window() {
+        let shared = Arc::new(Shared::default());
+        let mut meter = Meter::new(Arc::clone(&shared), 48_000);
+        for i in 0..(4 * LATENCY_WINDOW as u64) {
+            let latency = if i < 2 * LATENCY_WINDOW as u64 {
+                10_000
+            } else {
+                1_000
+            };
+            meter.record(48, &info(i * 1_000, latency));
+        }
+        let latency = shared.snapshot().output_latency.expect("latency");
+        assert!((latency.0 - 1e-3).abs() < 1e-9, "{latency}");
+        assert_eq!(shared.snapshot().late_callbacks, 0);
+    }
+
+    #[test]
+    fn spans_compress_runs() {
+        assert_eq!(spans(vec![6, 1, 2, 3, 2]), "1-3, 6");
+        assert_eq!(spans(vec![2]), "2");
+    }
+
+    #[test]
+    fn host_names_parse() {
+        assert_eq!("ALSA".parse::<AudioHost>().ok(), Some(AudioHost::Alsa));
+        assert_eq!(
+            "default".parse::<AudioHost>().ok(),
+            Some(AudioHost::Default)
+        );
+        assert!("pulse".parse::<AudioHost>().is_err());
+    }
+}

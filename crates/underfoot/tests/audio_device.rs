@@ -1,0 +1,241 @@
+//! Audio output against real cpal hosts.
+//!
+//! Without a sound card these tests skip (with a message) rather than fail:
+//! - ALSA's `null` device, if the ALSA configuration has one: a smoke test. It is not
+//!   paced (it consumes audio as fast as it is rendered), so only counts are checked.
+//! - A JACK server, with `--features jack` and `UNDERFOOT_JACK=1`, which makes it
+//!   mandatory: a correctly paced device even on a machine without audio hardware
+//!   (`jackd --no-realtime -d dummy -r 48000 -p 64`, started by `.ci/audio-setup`).
+//!
+//! A counting allocator checks that the whole audio-thread path (cpal, the conversion
+//! and metering here, the render callback) does not allocate once running.
+#![cfg(feature = "audio")]
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use underfoot::io::IoError;
+use underfoot::io::audio::{AudioConfig, AudioHost, AudioOutput, list_devices};
+use underfoot::units::SampleRate;
+
+struct CountingAlloc;
+
+thread_local! {
+    /// Set by the render callback on its first call, so that allocations on audio
+    /// threads (and only there) are counted from then on.
+    static ON_AUDIO_THREAD: Cell<bool> = const { Cell::new(false) };
+}
+static AUDIO_THREAD_ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+fn note_allocation() {
+    if ON_AUDIO_THREAD.try_with(Cell::get).unwrap_or(false) {
+        AUDIO_THREAD_ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+    }
+}
+
+// SAFETY: forwards to the system allocator unchanged; the counting touches only a
+// const-initialised thread-local and an atomic, neither of which allocates.
+unsafe impl GlobalAlloc for CountingAlloc {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        note_allocation();
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        note_allocation();
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc_zeroed(layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        note_allocation();
+        // SAFETY: same contract as the caller's.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: CountingAlloc = CountingAlloc;
+
+/// One device test at a time: the unpaced ALSA null stream keeps a core busy and would
+/// disturb the JACK pacing measurement on a small machine.
+static DEVICE: Mutex<()> = Mutex::new(());
+
+fn one_at_a_time() -> std::sync::MutexGuard<'static, ()> {
+    DEVICE.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A render callback: a quiet 100 Hz tone on every channel, and the frames it rendered.
+fn tone(rate: SampleRate, rendered: &'static AtomicU64) -> impl FnMut(&mut [f32], usize) + Send {
+    let step = std::f32::consts::TAU * 100.0 / rate.0 as f32;
+    let mut phase = 0.0_f32;
+    move |buffer: &mut [f32], channels: usize| {
+        ON_AUDIO_THREAD.with(|f| f.set(true));
+        for frame in buffer.chunks_exact_mut(channels) {
+            frame.fill(0.1 * phase.sin());
+            phase = (phase + step) % std::f32::consts::TAU;
+        }
+        rendered.fetch_add((buffer.len() / channels) as u64, Ordering::Relaxed);
+    }
+}
+
+#[test]
+fn alsa_null_device_smoke() {
+    let _guard = one_at_a_time();
+    let devices = match list_devices(AudioHost::Alsa) {
+        Ok(d) => d,
+        Err(e) => {
+            println!("skipped: ALSA unavailable: {e}");
+            return;
+        }
+    };
+    if !devices.iter().any(|d| d.name == "null") {
+        println!("skipped: the ALSA configuration has no \"null\" device");
+        return;
+    }
+
+    static RENDERED: AtomicU64 = AtomicU64::new(0);
+    let config = AudioConfig {
+        host: AudioHost::Alsa,
+        device: Some("null".into()),
+        channels: 2,
+        rate: SampleRate(48_000),
+        buffer_frames: None,
+    };
+    let output = AudioOutput::start(&config, tone(config.rate, &RENDERED)).expect("start null");
+    let info = output.info().clone();
+    std::thread::sleep(Duration::from_millis(200));
+    let stats = output.stop();
+    println!("ALSA null: {info:?}\n  {stats:?}");
+
+    assert_eq!(info.host, AudioHost::Alsa);
+    assert_eq!(info.device, "null");
+    assert_eq!((info.rate, info.channels), (SampleRate(48_000), 2));
+    assert!(stats.callbacks > 0, "no callbacks");
+    assert_eq!(stats.frames, RENDERED.load(Ordering::Relaxed));
+    assert_eq!(stats.stream_errors, 0);
+}
+
+#[test]
+fn alsa_errors_name_the_device_and_what_it_offers() {
+    let _guard = one_at_a_time();
+    let Ok(devices) = list_devices(AudioHost::Alsa) else {
+        println!("skipped: ALSA unavailable");
+        return;
+    };
+    let missing = AudioConfig {
+        host: AudioHost::Alsa,
+        device: Some("no-such-device-42".into()),
+        ..AudioConfig::default()
+    };
+    let err = AudioOutput::start(&missing, |b: &mut [f32], _| b.fill(0.0)).expect_err("missing");
+    let message = err.to_string();
+    assert!(matches!(err, IoError::Open { .. }), "{err:?}");
+    assert!(message.contains("no-such-device-42"), "{message}");
+    println!("{message}");
+
+    if devices.iter().any(|d| d.name == "null") {
+        let zero = AudioConfig {
+            host: AudioHost::Alsa,
+            device: Some("null".into()),
+            channels: 0,
+            ..AudioConfig::default()
+        };
+        let err = AudioOutput::start(&zero, |b: &mut [f32], _| b.fill(0.0)).expect_err("0 ch");
+        assert!(matches!(err, IoError::Unsupported { .. }), "{err:?}");
+        assert!(err.to_string().contains("null"), "{err}");
+    }
+}
+
+#[cfg(feature = "jack")]
+#[test]
+fn jack_dummy_server_is_paced_in_real_time() {
+    if std::env::var("UNDERFOOT_JACK").as_deref() != Ok("1") {
+        println!(
+            "skipped: set UNDERFOOT_JACK=1 with a JACK server running \
+             (jackd --no-realtime -d dummy -r 48000 -p 64) to run the JACK test"
+        );
+        return;
+    }
+    let _guard = one_at_a_time();
+    let devices = list_devices(AudioHost::Jack).expect("JACK devices");
+    println!("JACK devices: {devices:?}");
+    assert!(
+        !devices.is_empty(),
+        "UNDERFOOT_JACK=1 but no JACK output device: is the server running? \
+         (.ci/audio-setup starts one)"
+    );
+
+    let rate = SampleRate(48_000);
+    let buffer = 64;
+    let config = AudioConfig {
+        host: AudioHost::Jack,
+        device: None,
+        channels: 2,
+        rate,
+        buffer_frames: Some(buffer),
+    };
+
+    // A buffer size the server does not run at is refused, naming what it runs at.
+    let wrong = AudioConfig {
+        buffer_frames: Some(4 * buffer),
+        ..config.clone()
+    };
+    let err = AudioOutput::start(&wrong, |b: &mut [f32], _| b.fill(0.0)).expect_err("256");
+    assert!(matches!(err, IoError::Unsupported { .. }), "{err:?}");
+    assert!(err.to_string().contains("64"), "{err}");
+    println!("refused as expected: {err}");
+
+    static RENDERED: AtomicU64 = AtomicU64::new(0);
+    let output = AudioOutput::start(&config, tone(rate, &RENDERED)).expect("start on JACK");
+    let info = output.info().clone();
+    println!("JACK stream: {info:?}");
+    assert_eq!(info.buffer_frames, Some(buffer));
+    assert_eq!(info.sample_format, underfoot::io::audio::SampleFormat::F32);
+
+    // Measured between two snapshots, so that start-up does not count.
+    std::thread::sleep(Duration::from_millis(200));
+    let (t0, s0) = (Instant::now(), output.stats());
+    std::thread::sleep(Duration::from_secs(3));
+    let (elapsed, s1) = (t0.elapsed(), output.stats());
+    let stats = output.stop();
+
+    let callbacks = s1.callbacks - s0.callbacks;
+    let audio_seconds = (callbacks * u64::from(buffer)) as f64 / rate.hz();
+    let pace = audio_seconds / elapsed.as_secs_f64();
+    let latency = stats
+        .output_latency
+        .map_or("none".to_string(), |l| format!("{:.3} ms", l.0 * 1e3));
+    println!(
+        "JACK: {callbacks} callbacks x {buffer} frames = {audio_seconds:.3} s of audio in \
+         {:.3} s: {pace:.4}x real time",
+        elapsed.as_secs_f64()
+    );
+    println!(
+        "JACK: output latency {latency}, late callbacks {}, xruns {}, stream errors {}, \
+         largest callback {} frames, audio-thread allocations {}",
+        stats.late_callbacks,
+        stats.xruns,
+        stats.stream_errors,
+        stats.max_callback_frames,
+        AUDIO_THREAD_ALLOCATIONS.load(Ordering::Relaxed)
+    );
+
+    assert!((0.9..=1.1).contains(&pace), "paced at {pace:.3}x real time");
+    assert_eq!(s1.frames - s0.frames, callbacks * u64::from(buffer));
+    assert_eq!(stats.max_callback_frames, u64::from(buffer));
+    assert_eq!(stats.frames, RENDERED.load(Ordering::Relaxed));
+    assert_eq!(stats.stream_errors, 0, "stream errors: {stats:?}");
+    assert!(stats.output_latency.is_some(), "no latency estimate");
+    assert_eq!(
+        AUDIO_THREAD_ALLOCATIONS.load(Ordering::Relaxed),
+        0,
+        "the audio thread allocated"
+    );
+}
