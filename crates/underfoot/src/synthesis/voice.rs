@@ -470,35 +470,20 @@ impl Voice {
     /// Returns the number of non-finite samples met: each resets the voice's state and
     /// is written as zero, so a bad coefficient or input can never reach the output.
     pub fn process(&mut self, input: &[f32], out: &mut [f32]) -> u32 {
-        let mut resets = 0;
-        let lanes = self.lanes.min(MAX_MODES);
-        for (x, y) in input.iter().zip(out.iter_mut()) {
-            let x = *x * self.gain;
-            let mut acc = [0.0f32; LANES];
-            for g in (0..lanes).step_by(LANES) {
-                for j in 0..LANES {
-                    let k = g + j;
-                    let (sr, si) = (self.state_re[k], self.state_im[k]);
-                    let nr = self.pole_re[k] * sr - self.pole_im[k] * si + self.res_re[k] * x;
-                    let ni = self.pole_re[k] * si + self.pole_im[k] * sr + self.res_im[k] * x;
-                    self.state_re[k] = nr;
-                    self.state_im[k] = ni;
-                    acc[j] += nr;
-                }
-            }
-            let mut v = self.direct * x + ((acc[0] + acc[1]) + (acc[2] + acc[3]));
-            for s in &mut self.sections[..self.section_count.min(MAX_POST_SECTIONS)] {
-                v = s.tick(v);
-            }
-            if v.is_finite() {
-                *y = v;
-            } else {
-                self.reset();
-                resets += 1;
-                *y = 0.0;
-            }
-        }
-        for k in 0..lanes {
+        // One monomorphised loop per group count, so that the whole state lives in
+        // registers for the block instead of going through memory at every sample.
+        let resets = match self.lanes / LANES {
+            0 => self.run::<0>(input, out),
+            1 => self.run::<1>(input, out),
+            2 => self.run::<2>(input, out),
+            3 => self.run::<3>(input, out),
+            4 => self.run::<4>(input, out),
+            5 => self.run::<5>(input, out),
+            6 => self.run::<6>(input, out),
+            7 => self.run::<7>(input, out),
+            _ => self.run::<{ MAX_MODES / LANES }>(input, out),
+        };
+        for k in 0..self.lanes.min(MAX_MODES) {
             if self.state_re[k].abs() < FLUSH && self.state_im[k].abs() < FLUSH {
                 self.state_re[k] = 0.0;
                 self.state_im[k] = 0.0;
@@ -511,6 +496,59 @@ impl Voice {
                 }
             }
         }
+        resets
+    }
+
+    fn run<const G: usize>(&mut self, input: &[f32], out: &mut [f32]) -> u32 {
+        let group = |a: &[f32; MAX_MODES]| -> [[f32; LANES]; G] {
+            std::array::from_fn(|g| std::array::from_fn(|j| a[g * LANES + j]))
+        };
+        let (pr, pi, rr, ri) = (
+            group(&self.pole_re),
+            group(&self.pole_im),
+            group(&self.res_re),
+            group(&self.res_im),
+        );
+        let (mut sr, mut si) = (group(&self.state_re), group(&self.state_im));
+        let count = self.section_count.min(MAX_POST_SECTIONS);
+        let mut sections = self.sections;
+        let (gain, direct) = (self.gain, self.direct);
+        let mut resets = 0;
+        for (x, y) in input.iter().zip(out.iter_mut()) {
+            let x = *x * gain;
+            let mut acc = [0.0f32; LANES];
+            for g in 0..G {
+                for j in 0..LANES {
+                    let nr = pr[g][j] * sr[g][j] - pi[g][j] * si[g][j] + rr[g][j] * x;
+                    let ni = pr[g][j] * si[g][j] + pi[g][j] * sr[g][j] + ri[g][j] * x;
+                    sr[g][j] = nr;
+                    si[g][j] = ni;
+                    acc[j] += nr;
+                }
+            }
+            let mut v = direct * x + ((acc[0] + acc[1]) + (acc[2] + acc[3]));
+            for s in &mut sections[..count] {
+                v = s.tick(v);
+            }
+            if v.is_finite() {
+                *y = v;
+            } else {
+                sr = [[0.0; LANES]; G];
+                si = [[0.0; LANES]; G];
+                for s in &mut sections {
+                    s.s = [0.0; 2];
+                }
+                resets += 1;
+                *y = 0.0;
+            }
+        }
+        for g in 0..G {
+            for j in 0..LANES {
+                self.state_re[g * LANES + j] = sr[g][j];
+                self.state_im[g * LANES + j] = si[g][j];
+            }
+        }
+        self.sections = sections;
         resets
     }
 }
