@@ -29,7 +29,11 @@ enum Command {
     /// Inspect and edit library files (or the built-in library).
     #[command(subcommand)]
     Library(commands::library::LibraryCommand),
-    /// Show the built-in materials: their fit table and spectra.
+    /// Render force (a CSV track or a generated walk) to a WAV file of vibration.
+    Render(commands::render::RenderArgs),
+    /// Run the live engine: force from a replay, serial port or OSC, to a device.
+    Run(commands::run::RunArgs),
+    /// A walk across every built-in material: walk.wav, its spectrogram, the fit table.
     Demo(commands::demo::DemoArgs),
 }
 
@@ -38,6 +42,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Fit(args) => commands::fit::run(&args),
         Command::Library(cmd) => commands::library::run(&cmd),
+        Command::Render(args) => commands::render::run(&args),
+        Command::Run(args) => commands::run::run(&args),
         Command::Demo(args) => commands::demo::run(&args),
     };
     match result {

@@ -571,3 +571,139 @@ fn fit_adds_a_material_writes_report_and_plot() {
     assert_eq!(library.names(), vec!["gravel", "synthetic"]);
     assert_eq!(library.get("synthetic").expect("model").order, 4);
 }
+
+fn read_wav(path: &Path) -> (hound::WavSpec, Vec<f32>) {
+    let mut r = hound::WavReader::open(path).expect("open wav");
+    let spec = r.spec();
+    let samples = r.samples::<f32>().map(|s| s.expect("sample")).collect();
+    (spec, samples)
+}
+
+/// The acceptance test of the demo: every material's stretch of `walk.wav`, analysed
+/// with the fitting pipeline, matches that material's measured response within 2 dB.
+#[test]
+fn demo_walks_across_every_builtin_material_and_each_stretch_matches_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let o = run(&["demo", "--out-dir", s(dir.path())]);
+    assert_ok(&o);
+    let (spec, samples) = read_wav(&dir.path().join("walk.wav"));
+    assert_eq!((spec.channels, spec.sample_rate), (1, 48_000));
+    let report: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(dir.path().join("walk.json")).unwrap()).unwrap();
+    let gain = underfoot::units::Decibels(report["gain_db"].as_f64().unwrap());
+    let segments = report["segments"].as_array().unwrap();
+    let lib = underfoot::material::builtin::builtin();
+    assert_eq!(segments.len(), lib.materials.len());
+    assert_eq!(report["limited_samples"], 0);
+    let rate = SampleRate(48_000);
+    for seg in segments {
+        let name = seg["material"].as_str().unwrap();
+        let a = rate.samples_in(underfoot::units::Seconds(seg["start_s"].as_f64().unwrap()));
+        let b = rate.samples_in(underfoot::units::Seconds(seg["end_s"].as_f64().unwrap()));
+        let lsd = underfoot::engine::offline::segment_lsd(
+            &samples[a..b.min(samples.len())],
+            rate,
+            lib.get(name).unwrap(),
+            gain,
+        )
+        .unwrap();
+        assert!(lsd < 2.0, "{name}: {lsd:.2} dB");
+    }
+    for file in ["walk.svg", "spectra.svg", "walk-force.csv"] {
+        assert!(fs::metadata(dir.path().join(file)).unwrap().len() > 1000, "{file}");
+    }
+    assert!(stdout(&o).contains("LSD dB"));
+}
+
+#[test]
+fn render_of_a_generated_walk_is_reproducible_and_carries_the_force() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let render = |out: &str, seed: &str| {
+        run(&[
+            "render", "--material", "snow", "--gait", "steps=3,channels=1", "--out",
+            s(&dir.path().join(out)), "--seed", seed, "--with-force", "--gain-db", "-20",
+            "--save-force", s(&dir.path().join("steps.csv")),
+        ])
+    };
+    assert_ok(&render("a.wav", "1"));
+    assert_ok(&render("b.wav", "1"));
+    let o = render("c.wav", "2");
+    assert_ok(&o);
+    assert!(stdout(&o).contains("3 strike(s)"), "{}", stdout(&o));
+    let (spec, a) = read_wav(&dir.path().join("a.wav"));
+    assert_eq!(spec.channels, 2, "vibration and force");
+    let (_, b) = read_wav(&dir.path().join("b.wav"));
+    let (_, c) = read_wav(&dir.path().join("c.wav"));
+    assert_eq!(a, b, "same seed, same output");
+    assert_ne!(a, c, "another seed perturbs the steps differently");
+    // The force channel peaks near 1.15 body weights of 70 kg, in kN.
+    let force_peak = a.iter().skip(1).step_by(2).fold(0.0f32, |m, v| m.max(*v));
+    assert!((0.7..0.95).contains(&force_peak), "{force_peak}");
+    // The saved track renders to the same vibration.
+    let o = run(&[
+        "render", "--material", "snow", "--force", s(&dir.path().join("steps.csv")), "--out",
+        s(&dir.path().join("d.wav")), "--seed", "1", "--gain-db", "-20",
+    ]);
+    assert_ok(&o);
+    let (_, d) = read_wav(&dir.path().join("d.wav"));
+    let vib: Vec<f32> = a.iter().step_by(2).copied().collect();
+    assert_eq!(vib.len(), d.len());
+    let diff = vib.iter().zip(&d).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max);
+    assert!(diff < 1e-6, "{diff}");
+}
+
+#[test]
+fn render_of_a_bad_force_track_fails_and_keeps_the_old_wav() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("out.wav");
+    fs::write(&out, b"previous render").unwrap();
+    for (name, text) in [
+        ("empty.csv", ""),
+        ("nan.csv", "time_s,force\n0,0\n0.01,nan\n"),
+        ("backwards.csv", "time_s,force\n0,0\n0.02,10\n0.01,20\n"),
+        ("ragged.csv", "time_s,left.heel,left.toe\n0,0,0\n0.01,5\n"),
+    ] {
+        let csv = dir.path().join(name);
+        fs::write(&csv, text).unwrap();
+        let o = run(&["render", "--material", "gravel", "--force", s(&csv), "--out", s(&out)]);
+        let e = assert_error(&o);
+        assert!(e.contains(name), "{name}: {e}");
+        assert_eq!(fs::read(&out).unwrap(), b"previous render");
+    }
+    let o = run(&["render", "--material", "granite", "--gait", "steps=1", "--out", s(&out)]);
+    assert!(assert_error(&o).contains("granite"));
+    let o = run(&["render", "--material", "gravel", "--gait", "steps=1,speed=3", "--out", s(&out)]);
+    assert!(assert_error(&o).contains("speed"));
+    assert_eq!(fs::read(&out).unwrap(), b"previous render");
+}
+
+#[test]
+fn run_plays_a_walk_live_into_a_paced_wav() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let wav = dir.path().join("live.wav");
+    let started = std::time::Instant::now();
+    let o = run(&[
+        "run", "--material", "wood", "--input", "gait:steps=2,channels=1,lead_in=0.2,tail=0.2",
+        "--output", &format!("wav:{}", s(&wav)), "--gain-db", "-20",
+    ]);
+    assert_ok(&o);
+    let took = started.elapsed().as_secs_f64();
+    assert!(stdout(&o).contains("2 strike(s)"), "{}", stdout(&o));
+    // Real-time pace: the walk lasts about 1.4 s, plus a second to ring out.
+    assert!(took > 2.0, "{took} s");
+    let (_, samples) = read_wav(&wav);
+    assert!(samples.iter().any(|v| v.abs() > 1e-4));
+    assert!(samples.iter().all(|v| v.abs() <= 0.5012));
+}
+
+#[test]
+fn run_rejects_bad_inputs_and_outputs_clearly() {
+    let o = run(&["run", "--input", "tcp:1234", "--output", "null"]);
+    assert!(assert_error(&o).contains("unknown kind"));
+    let o = run(&["run", "--input", "replay:/nonexistent.csv", "--output", "null"]);
+    assert!(assert_error(&o).contains("/nonexistent.csv"));
+    let o = run(&["run", "--input", "gait:steps=1", "--output", "speaker"]);
+    assert!(assert_error(&o).contains("speaker"));
+    let o = run(&["run", "--input", "serial:/dev/does-not-exist", "--output", "null"]);
+    assert!(assert_error(&o).contains("/dev/does-not-exist"));
+}

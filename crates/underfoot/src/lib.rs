@@ -12,6 +12,11 @@
 //! | analysis | [`analysis`] | the measured response of a material: RMS-averaged, 1/6-octave smoothed strike spectra |
 //! | fitting | [`fit`] | IIR fits to a measured response: Levi, vector fitting, damped Gauss-Newton, order search |
 //! | material models | [`material`] | the material model, the versioned library file, the built-in presets |
+//! | force | [`force`] | sensor readings, force tracks (CSV), the walking gait, heel strikes, the drive signal |
+//! | synthesis | [`synthesis`] | a material's modes at the audio rate; the voice with its per-step perturbation |
+//! | safety | [`safety`] | hard limiter, input watchdog, start/stop fades |
+//! | engine | [`engine`] | N channels in real time: lock-free events, no allocation in the callback; offline renders |
+//! | device I/O | [`io`] | CSV replay, serial, OSC in; WAV and audio devices (cpal) out, each behind a feature |
 //!
 //! Units are types ([`units`]): a [`SampleRate`](units::SampleRate) is not a
 //! [`Hz`](units::Hz), and neither is a bare `f64`.
@@ -59,6 +64,50 @@
 //! library.upsert(model);
 //! let json = library.to_json();
 //! assert!(json.contains("underfoot.library/1"));
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! # Playing a material
+//!
+//! The engine turns force into vibration. Prepare a bank of materials for the audio rate
+//! (off the audio thread), build the engine, move its audio half into the device callback,
+//! and send force readings from anywhere else. Here, offline: one heel strike on the
+//! built-in gravel, at 48 kHz.
+//!
+//! ```
+//! use underfoot::engine::{self, EngineConfig, Event, MaterialBank, TimedEvent};
+//! use underfoot::force::SensorReading;
+//! use underfoot::force::gait::nominal_step;
+//! use underfoot::material::builtin::builtin;
+//! use underfoot::synthesis::VoiceConfig;
+//! use underfoot::units::{Newtons, SampleRate};
+//!
+//! let rate = SampleRate(48_000);
+//! let bank = MaterialBank::prepare(
+//!     builtin(),
+//!     rate,
+//!     &VoiceConfig::default(),
+//!     &nominal_step(70.0, 1.8, rate.hz()), // calibrates the force drives
+//!     Newtons::weight_of(70.0),
+//! )?;
+//! let gravel = bank.slot("gravel")?;
+//! let config = EngineConfig { rate, ..EngineConfig::default() };
+//! let (mut controller, mut engine) = engine::build(&config, bank, &[gravel])?;
+//!
+//! // The foot comes down: the total force rises through the step threshold (60 N).
+//! for (frame, newtons) in [(0, 0.0), (96, 20.0), (192, 240.0)] {
+//!     let reading = SensorReading::new(&[newtons * 0.7, newtons * 0.3]).unwrap(); // heel, toe
+//!     controller.send(TimedEvent::at(frame, Event::Force { channel: 0, reading }))?;
+//! }
+//! // The audio callback: render into the buffer given, never allocating.
+//! let mut buffer = vec![0.0f32; 4800];
+//! for block in buffer.chunks_mut(64) {
+//!     engine.process(block, 1);
+//! }
+//! // The strike sounds from the sample of the reading that crossed the threshold.
+//! assert!(buffer[..192].iter().all(|v| *v == 0.0));
+//! assert!(buffer[192] != 0.0);
+//! assert_eq!(controller.telemetry().strikes, 1);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 pub mod analysis;

@@ -239,3 +239,87 @@ fn jack_dummy_server_is_paced_in_real_time() {
         "the audio thread allocated"
     );
 }
+
+/// End-to-end latency on a paced device: from the moment a force reading crossing the
+/// step threshold is handed to the engine, to the moment its first vibration sample
+/// leaves the device (the callback's wait, the onset's place in its buffer, and the
+/// output latency the host reports).
+#[cfg(feature = "jack")]
+#[test]
+fn jack_latency_from_threshold_crossing_to_first_output_sample() {
+    use underfoot::engine::{self, EngineConfig, Event, MaterialBank, TimedEvent};
+    use underfoot::force::SensorReading;
+    use underfoot::force::gait::nominal_step;
+    use underfoot::material::builtin::builtin;
+    use underfoot::synthesis::VoiceConfig;
+    use underfoot::units::Newtons;
+
+    if std::env::var("UNDERFOOT_JACK").as_deref() != Ok("1") {
+        println!("skipped: set UNDERFOOT_JACK=1 with a JACK server running");
+        return;
+    }
+    let _guard = one_at_a_time();
+    let rate = SampleRate(48_000);
+    let bank = MaterialBank::prepare(
+        builtin(),
+        rate,
+        &VoiceConfig::default(),
+        &nominal_step(70.0, 1.8, rate.hz()),
+        Newtons::weight_of(70.0),
+    )
+    .unwrap();
+    let slot = bank.slot("hard").unwrap();
+    let (mut ctl, mut eng) = engine::build(&EngineConfig::default(), bank, &[slot]).unwrap();
+
+    static BASE: std::sync::OnceLock<Instant> = std::sync::OnceLock::new();
+    static ONSET_CALLBACK_NS: AtomicU64 = AtomicU64::new(u64::MAX);
+    static ONSET_FRAME: AtomicU64 = AtomicU64::new(0);
+    let base = *BASE.get_or_init(Instant::now);
+    let config = AudioConfig {
+        host: AudioHost::Jack,
+        device: None,
+        channels: 2,
+        rate,
+        buffer_frames: Some(64),
+    };
+    let output = AudioOutput::start(&config, move |out: &mut [f32], channels: usize| {
+        let entered = base.elapsed().as_nanos() as u64;
+        eng.process(out, channels);
+        if ONSET_CALLBACK_NS.load(Ordering::Relaxed) == u64::MAX
+            && let Some(i) = out.iter().position(|v| v.abs() > 1e-7)
+        {
+            ONSET_FRAME.store((i / channels) as u64, Ordering::Relaxed);
+            ONSET_CALLBACK_NS.store(entered, Ordering::Relaxed);
+        }
+    })
+    .expect("start on JACK");
+    let idle = |ctl: &mut engine::Controller| {
+        ctl.send(TimedEvent::now(Event::Force { channel: 0, reading: SensorReading::single(0.0) }))
+            .unwrap();
+    };
+    for _ in 0..100 {
+        idle(&mut ctl);
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let sent = base.elapsed().as_nanos() as u64;
+    ctl.send(TimedEvent::now(Event::Force { channel: 0, reading: SensorReading::single(700.0) }))
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    let stats = output.stop();
+    let callback = ONSET_CALLBACK_NS.load(Ordering::Relaxed);
+    assert_ne!(callback, u64::MAX, "the step never reached the output");
+    let wait = callback.saturating_sub(sent) as f64 * 1e-9;
+    let in_buffer = ONSET_FRAME.load(Ordering::Relaxed) as f64 / rate.hz();
+    let device = stats.output_latency.map_or(0.0, |l| l.0);
+    let total = wait + in_buffer + device;
+    println!(
+        "latency: {:.2} ms to the callback + {:.2} ms into its buffer + {:.2} ms device = {:.2} ms",
+        wait * 1e3,
+        in_buffer * 1e3,
+        device * 1e3,
+        total * 1e3
+    );
+    assert_eq!(ctl.telemetry().strikes, 1);
+    assert!(in_buffer == 0.0, "a live step starts its buffer");
+    assert!(total < 0.010, "{:.2} ms", total * 1e3);
+}

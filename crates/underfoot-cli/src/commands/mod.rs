@@ -1,4 +1,6 @@
-//! One module per subcommand.
 pub mod demo;
 pub mod fit;
 pub mod library;
+pub mod render;
+pub mod run;
+pub mod synth;

@@ -5,7 +5,10 @@
 //!
 //! A [`PreparedMaterial`] is a library model made ready for one audio rate, off the
 //! audio thread: its modal form ([`super::modal`]) resampled by impulse invariance, its
-//! longest decay limited, a post filter, and one calibrated gain per drive. A [`Voice`]
+//! longest decay limited (a fit can park a pole at the edge of stability; no ground rings
+//! for seconds, and an actuator on skin must not), its residues re-solved so that modes
+//! and post filter together have the model's response across the band, and one
+//! calibrated gain per drive. A [`Voice`]
 //! copies those coefficients into fixed-size arrays (so loading one never allocates) and
 //! runs them:
 //!
@@ -318,6 +321,19 @@ impl PreparedMaterial {
                 1.0
             };
         }
+    }
+
+    /// The largest absolute sample of a unit step under the impulse drive (one second of
+    /// its response): what a nominal step peaks at before the output gain.
+    #[must_use]
+    pub fn impulse_peak(&self) -> f32 {
+        let mut voice = Voice::new();
+        voice.load(self, DriveKind::Impulse);
+        let mut x = vec![0.0f32; self.modal.rate.samples_in(Seconds(1.0)).max(1)];
+        x[0] = 1.0;
+        let mut y = vec![0.0f32; x.len()];
+        voice.process(&x, &mut y);
+        y.iter().fold(0.0, |m, v| m.max(v.abs()))
     }
 
     /// The response of the voice (modes and post filter) at `omega` radians per sample.

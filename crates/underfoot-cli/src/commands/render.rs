@@ -1,0 +1,179 @@
+//! `underfoot render`: force in, a WAV file of vibration out, offline.
+//!
+//! The force comes from a CSV track (`--force`) or from the gait generator (`--gait`).
+//! The track's channel `k` drives output channel `k`. The real-time engine does the
+//! rendering, so a render is what a live session with the same input would play.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::{ArgGroup, Args};
+use underfoot::engine::offline::{render, track_events};
+use underfoot::engine::{Event, TimedEvent};
+use underfoot::force::condition::ForceConditioner;
+use underfoot::force::gait::{self, GaitConfig};
+use underfoot::force::track::ForceTrack;
+use underfoot::io::wav::{WavFormat, WavSink};
+use underfoot::units::{Decibels, Hz, Seconds};
+
+use crate::commands::synth::SynthArgs;
+use crate::output::emit;
+
+/// Arguments of `underfoot render`.
+#[derive(Debug, Args)]
+#[command(group(ArgGroup::new("input").required(true).args(["force", "gait"])))]
+pub struct RenderArgs {
+    /// Material of each channel, comma-separated (the last one serves the rest).
+    #[arg(long, value_name = "NAME[,NAME...]", value_delimiter = ',', required = true)]
+    material: Vec<String>,
+    /// Force track (CSV: `time_s,<channel>.<sensor>,...`, newtons).
+    #[arg(long, value_name = "FILE.csv")]
+    force: Option<PathBuf>,
+    /// Generate the force of a walk instead, e.g. "steps=12,cadence=1.8,weight=70"
+    /// (keys: steps, cadence, weight, channels, variation, rate, seed, stance).
+    #[arg(long, value_name = "SPEC")]
+    gait: Option<String>,
+    /// Save the generated force track too.
+    #[arg(long = "save-force", value_name = "FILE.csv", requires = "gait")]
+    save_force: Option<PathBuf>,
+    /// Output WAV file.
+    #[arg(long, value_name = "FILE.wav")]
+    out: PathBuf,
+    /// Append each channel's total force as extra channels, in kilonewtons.
+    #[arg(long = "with-force")]
+    with_force: bool,
+    /// Sample format: f32, i16 or i24.
+    #[arg(long, default_value = "f32", value_parser = parse_format)]
+    format: WavFormat,
+    /// Silence rendered after the last force reading (lets the last step ring out).
+    #[arg(long, default_value_t = 1.0, value_name = "SECONDS")]
+    tail: f64,
+    /// Frames per engine call (the output does not depend on it).
+    #[arg(long, default_value_t = 256, value_name = "N")]
+    block: usize,
+    #[command(flatten)]
+    synth: SynthArgs,
+}
+
+fn parse_format(s: &str) -> Result<WavFormat, String> {
+    match s {
+        "f32" | "float" => Ok(WavFormat::Float32),
+        "i16" => Ok(WavFormat::Int16),
+        "i24" => Ok(WavFormat::Int24),
+        _ => Err(format!("unknown format {s:?}: expected f32, i16 or i24")),
+    }
+}
+
+/// Runs `underfoot render`.
+pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.tail.is_finite() && (0.0..=60.0).contains(&args.tail),
+        "--tail {} s: need 0 to 60",
+        args.tail
+    );
+    let track = match (&args.force, &args.gait) {
+        (Some(path), _) => ForceTrack::read(path)?,
+        (None, Some(spec)) => {
+            let config = GaitConfig::from_spec(spec)?;
+            let g = gait::generate(&config)?;
+            if let Some(path) = &args.save_force {
+                g.track.save(path)?;
+            }
+            g.track
+        }
+        (None, None) => unreachable!("clap requires one input"),
+    };
+    let channels = track.channel_count();
+    let setup = args.synth.setup(channels)?;
+    let slots = setup.slots(&args.material, channels)?;
+    let rate = setup.config.rate;
+    let events = track_events(&track, rate);
+    let last = events.last().and_then(|e| e.at).unwrap_or(0) as usize;
+    let frames = last + rate.samples_in(Seconds(args.tail)) + 1;
+
+    let started = Instant::now();
+    let out = render(&setup.config, setup.bank, &slots, &events, frames, args.block)?;
+    let elapsed = started.elapsed().as_secs_f64();
+
+    let force = args
+        .with_force
+        .then(|| force_at_audio_rate(&events, channels, frames, rate, Hz(args.synth.sensor_rate)));
+    let wav_channels = channels * if force.is_some() { 2 } else { 1 };
+    let mut sink = WavSink::create(&args.out, rate, wav_channels as u16, args.format)?;
+    let mut frame = vec![0.0f32; wav_channels];
+    let mut chunk = Vec::with_capacity(wav_channels * 4096);
+    for i in 0..frames {
+        frame[..channels].copy_from_slice(&out.samples[i * channels..(i + 1) * channels]);
+        if let Some(force) = &force {
+            for c in 0..channels {
+                frame[channels + c] = force[c][i] / 1000.0;
+            }
+        }
+        chunk.extend_from_slice(&frame);
+        if chunk.len() >= wav_channels * 4096 || i + 1 == frames {
+            sink.write_interleaved(&chunk)?;
+            chunk.clear();
+        }
+    }
+    let summary = sink.finish()?;
+
+    let t = out.telemetry;
+    let seconds = frames as f64 / rate.hz();
+    emit(&format!(
+        "{}: {channels} channel(s), {seconds:.2} s at {rate}, {} strike(s), peak {:.1} dBFS \
+         (ceiling {:.1} dB), rendered {:.0}x faster than real time\n",
+        args.out.display(),
+        t.strikes,
+        Decibels::from_amplitude(f64::from(t.peak).max(1e-12)).0,
+        args.synth.ceiling_db,
+        seconds / elapsed.max(1e-9),
+    ))?;
+    if t.limited > 0 {
+        eprintln!(
+            "underfoot: warning: the limiter reduced {} sample(s); lower --gain-db to keep the \
+             recorded shape",
+            t.limited
+        );
+    }
+    if t.non_finite > 0 || summary.clipped_samples > 0 {
+        eprintln!(
+            "underfoot: warning: {} non-finite sample(s) silenced, {} clipped by the format",
+            t.non_finite, summary.clipped_samples
+        );
+    }
+    if t.strikes == 0 {
+        eprintln!(
+            "underfoot: warning: no heel strike found: the force never rose through {} \
+             (is the track in newtons?)",
+            setup.config.detector.on
+        );
+    }
+    Ok(())
+}
+
+/// Each channel's total force as the engine saw it (the same interpolation).
+fn force_at_audio_rate(
+    events: &[TimedEvent],
+    channels: usize,
+    frames: usize,
+    rate: underfoot::units::SampleRate,
+    sensor_rate: Hz,
+) -> Vec<Vec<f32>> {
+    let mut conditioners = vec![ForceConditioner::new(rate, sensor_rate); channels];
+    let mut force = vec![vec![0.0f32; frames]; channels];
+    let mut next = 0;
+    for i in 0..frames {
+        while next < events.len() && events[next].at.unwrap_or(0) <= i as u64 {
+            if let Event::Force { channel, reading } = events[next].event
+                && let Some(c) = conditioners.get_mut(usize::from(channel))
+            {
+                c.push(&reading);
+            }
+            next += 1;
+        }
+        for (c, cond) in conditioners.iter_mut().enumerate() {
+            force[c][i] = cond.next_total();
+        }
+    }
+    force
+}

@@ -1,0 +1,404 @@
+//! `underfoot run`: the live engine. Force from a replayed track, a generated walk, a
+//! serial port or OSC; vibration to an audio device, a WAV file or nowhere (`null`).
+//!
+//! The input is polled on this thread and crosses to the audio thread over the engine's
+//! lock-free queue. `wav:` and `null` outputs are paced by a thread that renders one
+//! buffer per buffer period, like a device would, so a session can run without one.
+//! A session ends when a replay or walk has played out (plus one second to ring out),
+//! after `--duration`, or on Enter when stdin is a terminal; the output then fades out.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use clap::Args;
+use underfoot::engine::{self, Engine, TimedEvent};
+use underfoot::force::gait::{self, GaitConfig};
+use underfoot::force::track::ForceTrack;
+use underfoot::io::osc::OscSource;
+use underfoot::io::replay::ReplaySource;
+use underfoot::io::serial::{SerialConfig, SerialSource};
+use underfoot::io::wav::{WavFormat, WavSink};
+use underfoot::io::{EventSource, SourceState};
+use underfoot::units::{Decibels, SampleRate};
+
+use crate::commands::synth::SynthArgs;
+use crate::output::emit;
+
+/// Arguments of `underfoot run`.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Where force comes from: replay:FILE.csv[@SPEED], gait:SPEC, serial:PORT, osc:HOST:PORT.
+    #[arg(long, value_name = "SOURCE")]
+    input: String,
+    /// Where vibration goes: audio[:DEVICE], wav:FILE.wav, or null.
+    #[arg(long, default_value = "audio", value_name = "SINK")]
+    output: String,
+    /// Material of each channel, comma-separated (default: the library's first).
+    #[arg(long, value_name = "NAME[,NAME...]", value_delimiter = ',')]
+    material: Vec<String>,
+    /// Output channels (actuators); default: the track's channels, else 1.
+    #[arg(long, value_name = "N")]
+    channels: Option<usize>,
+    /// Frames per device buffer (audio: requested; wav/null: the pacing period).
+    #[arg(long, value_name = "N")]
+    buffer: Option<u32>,
+    /// Audio host: default, alsa or jack.
+    #[arg(long, default_value = "default", value_name = "HOST")]
+    host: String,
+    /// Stop after this many seconds.
+    #[arg(long, value_name = "SECONDS")]
+    duration: Option<f64>,
+    /// Serial line speed.
+    #[arg(long, default_value_t = 115_200, value_name = "BAUD")]
+    baud: u32,
+    /// Serial frame layout: sensors per channel, e.g. 2,2 (heel and toe of two feet).
+    #[arg(long, value_delimiter = ',', default_value = "2", value_name = "N[,N...]")]
+    layout: Vec<usize>,
+    /// Newtons per ADC count of the serial sensors.
+    #[arg(long = "newtons-per-count", default_value_t = 0.5, value_name = "N")]
+    newtons_per_count: f32,
+    /// List the audio devices and exit.
+    #[arg(long = "list-devices")]
+    list_devices: bool,
+    #[command(flatten)]
+    synth: SynthArgs,
+}
+
+/// Runs `underfoot run`.
+pub fn run(args: &RunArgs) -> anyhow::Result<()> {
+    if args.list_devices {
+        return list_devices(&args.host);
+    }
+    let (mut source, track_channels, ends) = open_input(args)?;
+    let channels = args.channels.or(track_channels).unwrap_or(1);
+    anyhow::ensure!((1..=64).contains(&channels), "--channels {channels}: need 1 to 64");
+    let setup = args.synth.setup(channels)?;
+    let names = if args.material.is_empty() {
+        vec![setup.library.materials[0].name.clone()]
+    } else {
+        args.material.clone()
+    };
+    let slots = setup.slots(&names, channels)?;
+    // OSC names materials: give it the bank's names now that the bank exists.
+    if let Input::OscPending(addr) = &source {
+        source = Input::Source(Box::new(OscSource::bind(addr, setup.bank.names(), channels)?));
+    }
+    let Input::Source(mut source) = source else {
+        unreachable!("every input is opened above")
+    };
+    let rate = setup.config.rate;
+    let (mut controller, engine) = engine::build(&setup.config, setup.bank, &slots)?;
+    let output = Output::start(&args.output, &args.host, args.buffer, channels, rate, engine)?;
+    eprintln!("underfoot: {}", output.describe());
+
+    let stop = Arc::new(AtomicBool::new(false));
+    if std::io::stdin().is_terminal() {
+        let stop = Arc::clone(&stop);
+        eprintln!("underfoot: running; press Enter to stop");
+        thread::spawn(move || {
+            let mut line = String::new();
+            let _ = std::io::stdin().read_line(&mut line);
+            stop.store(true, Ordering::SeqCst);
+        });
+    }
+    let started = Instant::now();
+    let deadline = args.duration.map(|d| started + Duration::from_secs_f64(d.max(0.0)));
+    let mut queue_full = 0u64;
+    let mut ended_at = None;
+    loop {
+        if stop.load(Ordering::SeqCst) || deadline.is_some_and(|d| Instant::now() >= d) {
+            break;
+        }
+        if let Some(t) = ended_at {
+            if Instant::now().duration_since(t) >= Duration::from_secs(1) {
+                break;
+            }
+            thread::sleep(Duration::from_millis(20));
+            continue;
+        }
+        let state = source.poll(Duration::from_millis(20), &mut |event| {
+            if controller.send(TimedEvent::now(event)).is_err() {
+                queue_full += 1;
+            }
+        })?;
+        if state == SourceState::Ended && ends {
+            ended_at = Some(Instant::now());
+        }
+        controller.collect();
+        if let Some(problem) = output.problem() {
+            bail!("{problem}");
+        }
+    }
+    controller.stop()?;
+    let fade_deadline = Instant::now() + Duration::from_millis(500);
+    while !controller.telemetry().stopped && Instant::now() < fade_deadline {
+        thread::sleep(Duration::from_millis(5));
+    }
+    let device_report = output.finish()?;
+    let t = controller.telemetry();
+    let s = source.stats();
+    emit(&format!(
+        "ran {:.1} s: {} strike(s), peak {:.1} dBFS, {} sample(s) limited, {} non-finite \
+         silenced, {} watchdog fade(s)\ninput: {} event(s), {} rejected, {} byte(s) skipped, \
+         {} dropped (queue full)\n{device_report}\n",
+        started.elapsed().as_secs_f64(),
+        t.strikes,
+        Decibels::from_amplitude(f64::from(t.peak).max(1e-12)).0,
+        t.limited,
+        t.non_finite,
+        t.watchdog_trips,
+        s.events,
+        s.rejected,
+        s.skipped_bytes,
+        queue_full,
+    ))
+}
+
+enum Input {
+    Source(Box<dyn EventSource>),
+    OscPending(String),
+}
+
+/// The input, the number of channels it carries (if it says), and whether it ends.
+fn open_input(args: &RunArgs) -> anyhow::Result<(Input, Option<usize>, bool)> {
+    let (kind, rest) = args
+        .input
+        .split_once(':')
+        .with_context(|| format!("--input {:?}: expected KIND:WHAT", args.input))?;
+    Ok(match kind {
+        "replay" => {
+            let (file, speed) = match rest.rsplit_once('@') {
+                Some((f, s)) => (f, s.parse::<f64>().with_context(|| format!("replay speed {s:?}"))?),
+                None => (rest, 1.0),
+            };
+            let track = ForceTrack::read(&PathBuf::from(file))?;
+            let channels = track.channel_count();
+            (Input::Source(Box::new(ReplaySource::new(track, speed)?)), Some(channels), true)
+        }
+        "gait" => {
+            let g = gait::generate(&GaitConfig::from_spec(rest)?)?;
+            let channels = g.track.channel_count();
+            (Input::Source(Box::new(ReplaySource::new(g.track, 1.0)?)), Some(channels), true)
+        }
+        "serial" => {
+            let config = SerialConfig {
+                port: rest.to_string(),
+                baud: args.baud,
+                layout: args.layout.clone(),
+                newtons_per_count: args.newtons_per_count,
+            };
+            let layout = args.layout.len();
+            (Input::Source(Box::new(SerialSource::open(&config)?)), Some(layout), false)
+        }
+        "osc" => (Input::OscPending(rest.to_string()), None, false),
+        _ => bail!("--input {:?}: unknown kind {kind:?} (replay, gait, serial, osc)", args.input),
+    })
+}
+
+/// A running output.
+enum Output {
+    #[cfg(feature = "audio")]
+    Audio(underfoot::io::audio::AudioOutput),
+    Paced {
+        thread: Option<thread::JoinHandle<anyhow::Result<String>>>,
+        stop: Arc<AtomicBool>,
+        what: String,
+    },
+}
+
+impl Output {
+    fn start(
+        spec: &str,
+        host: &str,
+        buffer: Option<u32>,
+        channels: usize,
+        rate: SampleRate,
+        engine: Engine,
+    ) -> anyhow::Result<Self> {
+        let (kind, rest) = spec.split_once(':').unwrap_or((spec, ""));
+        match kind {
+            "audio" => start_audio(rest, host, buffer, channels, rate, engine),
+            "wav" | "null" => {
+                anyhow::ensure!(kind == "null" || !rest.is_empty(), "--output wav:FILE needs a file");
+                let _ = host;
+                let sink = if kind == "wav" {
+                    Some(WavSink::create(rest, rate, channels as u16, WavFormat::Float32)?)
+                } else {
+                    None
+                };
+                let block = buffer.unwrap_or(256).clamp(16, 8192) as usize;
+                let stop = Arc::new(AtomicBool::new(false));
+                let what = format!(
+                    "paced output {spec}: {channels} channel(s) at {rate}, {block}-frame buffers"
+                );
+                let thread = {
+                    let stop = Arc::clone(&stop);
+                    thread::spawn(move || paced(engine, sink, channels, rate, block, &stop))
+                };
+                Ok(Output::Paced { thread: Some(thread), stop, what })
+            }
+            _ => bail!("--output {spec:?}: expected audio[:DEVICE], wav:FILE or null"),
+        }
+    }
+
+    fn describe(&self) -> String {
+        match self {
+            #[cfg(feature = "audio")]
+            Output::Audio(a) => {
+                let i = a.info();
+                format!(
+                    "audio output {} on {}: {} channel(s) at {}, buffer {}, {:?}",
+                    i.device,
+                    i.host,
+                    i.channels,
+                    i.rate,
+                    i.buffer_frames.map_or("default".to_string(), |b| format!("{b} frames")),
+                    i.sample_format
+                )
+            }
+            Output::Paced { what, .. } => what.clone(),
+        }
+    }
+
+    fn problem(&self) -> Option<String> {
+        match self {
+            #[cfg(feature = "audio")]
+            Output::Audio(a) => {
+                let s = a.stats();
+                (s.stream_errors > 0).then(|| "the audio device reported an error".to_string())
+            }
+            Output::Paced { thread, .. } => thread
+                .as_ref()
+                .is_some_and(|t| t.is_finished())
+                .then(|| "the output stopped".to_string()),
+        }
+    }
+
+    fn finish(self) -> anyhow::Result<String> {
+        match self {
+            #[cfg(feature = "audio")]
+            Output::Audio(a) => {
+                let s = a.stop();
+                Ok(format!(
+                    "audio: {} callback(s), {} late, {} xrun(s), output latency {}",
+                    s.callbacks,
+                    s.late_callbacks,
+                    s.xruns,
+                    s.output_latency
+                        .map_or("unknown".to_string(), |l| format!("{:.2} ms", l.0 * 1e3))
+                ))
+            }
+            Output::Paced { mut thread, stop, .. } => {
+                stop.store(true, Ordering::SeqCst);
+                match thread.take().map(thread::JoinHandle::join) {
+                    Some(Ok(result)) => result,
+                    _ => bail!("the output thread panicked"),
+                }
+            }
+        }
+    }
+}
+
+#[cfg(feature = "audio")]
+fn start_audio(
+    device: &str,
+    host: &str,
+    buffer: Option<u32>,
+    channels: usize,
+    rate: SampleRate,
+    mut engine: Engine,
+) -> anyhow::Result<Output> {
+    use underfoot::io::audio::{AudioConfig, AudioOutput};
+    let config = AudioConfig {
+        host: host.parse().map_err(|e| anyhow::anyhow!("--host {host:?}: {e}"))?,
+        device: (!device.is_empty()).then(|| device.to_string()),
+        channels: channels as u16,
+        rate,
+        buffer_frames: buffer,
+    };
+    let output = AudioOutput::start(&config, move |out: &mut [f32], device_channels| {
+        engine.process(out, device_channels);
+    })?;
+    Ok(Output::Audio(output))
+}
+
+#[cfg(not(feature = "audio"))]
+fn start_audio(
+    _device: &str,
+    _host: &str,
+    _buffer: Option<u32>,
+    _channels: usize,
+    _rate: SampleRate,
+    _engine: Engine,
+) -> anyhow::Result<Output> {
+    bail!(
+        "this build has no audio output: rebuild with `--features audio` (needs the \
+         libasound2-dev package), or use --output wav:FILE or --output null"
+    )
+}
+
+#[cfg(feature = "audio")]
+fn list_devices(host: &str) -> anyhow::Result<()> {
+    let host = host.parse().map_err(|e| anyhow::anyhow!("--host {host:?}: {e}"))?;
+    let mut text = String::new();
+    for d in underfoot::io::audio::list_devices(host)? {
+        text.push_str(&format!(
+            "{}\t{}\tup to {} ch\t{}\n",
+            d.name,
+            d.description,
+            d.max_channels,
+            d.rates.iter().map(|r| r.0.to_string()).collect::<Vec<_>>().join(",")
+        ));
+    }
+    emit(&text)
+}
+
+#[cfg(not(feature = "audio"))]
+fn list_devices(_host: &str) -> anyhow::Result<()> {
+    bail!("this build has no audio output: rebuild with `--features audio`")
+}
+
+/// Renders one buffer per buffer period, as a device would, into a WAV file or nowhere.
+fn paced(
+    mut engine: Engine,
+    mut sink: Option<WavSink>,
+    channels: usize,
+    rate: SampleRate,
+    block: usize,
+    stop: &AtomicBool,
+) -> anyhow::Result<String> {
+    let period = Duration::from_secs_f64(block as f64 / rate.hz());
+    let mut buf = vec![0.0f32; block * channels];
+    let mut next = Instant::now();
+    let mut late = 0u64;
+    let mut blocks = 0u64;
+    while !stop.load(Ordering::SeqCst) {
+        engine.process(&mut buf, channels);
+        if let Some(sink) = &mut sink {
+            sink.write_interleaved(&buf)?;
+        }
+        blocks += 1;
+        next += period;
+        let now = Instant::now();
+        if next > now {
+            thread::sleep(next - now);
+        } else if now - next > period {
+            late += 1;
+            next = now;
+        }
+    }
+    let written = match sink {
+        Some(sink) => {
+            let path = sink.path().display().to_string();
+            let s = sink.finish()?;
+            format!(", {} frame(s) to {path}", s.frames)
+        }
+        None => String::new(),
+    };
+    Ok(format!("paced output: {blocks} buffer(s), {late} late{written}"))
+}

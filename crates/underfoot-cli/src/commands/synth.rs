@@ -1,0 +1,136 @@
+//! What `render`, `run` and `demo` share: the library, the material bank and the engine
+//! settings, from the command line.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use clap::Args;
+use underfoot::engine::{EngineConfig, MaterialBank};
+use underfoot::force::drive::DriveKind;
+use underfoot::force::gait::nominal_step;
+use underfoot::material::Library;
+use underfoot::synthesis::VoiceConfig;
+use underfoot::units::{Decibels, Hz, Newtons, SampleRate};
+
+use crate::commands::library::open;
+
+/// Synthesis settings.
+#[derive(Debug, Clone, Args)]
+pub struct SynthArgs {
+    /// Library file to take materials from (default: the built-in library).
+    #[arg(long, value_name = "FILE")]
+    pub library: Option<PathBuf>,
+    /// What drives the material filter: impulse (one per heel strike; reproduces the
+    /// recorded strikes), force, or force-rate (the tile paper's v_F).
+    #[arg(long, default_value = "impulse", value_name = "KIND")]
+    pub drive: DriveKind,
+    /// Output sample rate.
+    #[arg(long, default_value_t = 48_000, value_name = "HZ")]
+    pub rate: u32,
+    /// Output gain before the limiter, in dB.
+    #[arg(long = "gain-db", default_value_t = 0.0, value_name = "DB", allow_hyphen_values = true)]
+    pub gain_db: f64,
+    /// Limiter ceiling in dB relative to full scale (at most 0).
+    #[arg(long = "ceiling-db", default_value_t = -6.0, value_name = "DB", allow_hyphen_values = true)]
+    pub ceiling_db: f64,
+    /// Standard deviation of the per-step numerator perturbation (paper: 0.01).
+    #[arg(long, default_value_t = 0.01, value_name = "SIGMA")]
+    pub perturbation: f32,
+    /// Seed of the perturbation (the same seed gives the same output).
+    #[arg(long, default_value_t = 0x5EED, value_name = "N")]
+    pub seed: u64,
+    /// Order of the low-pass at the top of the band that removes fitting artefacts (0: none).
+    #[arg(long = "lowpass-order", default_value_t = 4, value_name = "N")]
+    pub lowpass_order: usize,
+    /// Nominal body mass the force drives are calibrated for, in kg.
+    #[arg(long = "weight", default_value_t = 70.0, value_name = "KG")]
+    pub weight_kg: f64,
+    /// About how often force readings arrive, in Hz (sets the force interpolation).
+    #[arg(long = "sensor-rate", default_value_t = 500.0, value_name = "HZ")]
+    pub sensor_rate: f64,
+}
+
+/// A library, a bank prepared from it, and the engine settings.
+pub struct Setup {
+    pub library: Library,
+    pub origin: String,
+    pub bank: MaterialBank,
+    pub config: EngineConfig,
+}
+
+impl SynthArgs {
+    /// Loads the library, prepares every material and fills in the engine settings.
+    pub fn setup(&self, channels: usize) -> anyhow::Result<Setup> {
+        anyhow::ensure!(
+            (8_000..=384_000).contains(&self.rate),
+            "--rate {} Hz: need 8000 to 384000",
+            self.rate
+        );
+        anyhow::ensure!(
+            (20.0..=300.0).contains(&self.weight_kg),
+            "--weight {} kg: need 20 to 300",
+            self.weight_kg
+        );
+        anyhow::ensure!(
+            self.sensor_rate.is_finite() && (1.0..=10_000.0).contains(&self.sensor_rate),
+            "--sensor-rate {} Hz: need 1 to 10000",
+            self.sensor_rate
+        );
+        let library = open(self.library.as_deref())?.into_owned();
+        let origin = self
+            .library
+            .as_ref()
+            .map_or_else(|| "the built-in library".to_string(), |p| p.display().to_string());
+        anyhow::ensure!(!library.materials.is_empty(), "{origin} has no materials");
+        let rate = SampleRate(self.rate);
+        let weight = Newtons::weight_of(self.weight_kg);
+        let voice = VoiceConfig {
+            lowpass_order: self.lowpass_order,
+            ..VoiceConfig::default()
+        };
+        let bank = MaterialBank::prepare(
+            &library,
+            rate,
+            &voice,
+            &nominal_step(self.weight_kg, 1.8, rate.hz()),
+            weight,
+        )
+        .with_context(|| format!("preparing the materials of {origin}"))?;
+        let mut config = EngineConfig {
+            rate,
+            channels,
+            drive: self.drive,
+            perturbation: self.perturbation,
+            seed: self.seed,
+            nominal_weight: weight,
+            sensor_rate: Hz(self.sensor_rate),
+            gain: Decibels(self.gain_db),
+            ceiling: Decibels(self.ceiling_db),
+            ..EngineConfig::default()
+        };
+        config.detector.nominal_loading_rate = config.detector.loading_rate_of(
+            &nominal_step(self.weight_kg, 1.8, self.sensor_rate),
+            SampleRate(self.sensor_rate.round() as u32),
+        );
+        Ok(Setup {
+            library,
+            origin,
+            bank,
+            config,
+        })
+    }
+}
+
+impl Setup {
+    /// The slot of each name (one per channel, the last repeated for the rest).
+    pub fn slots(&self, names: &[String], channels: usize) -> anyhow::Result<Vec<u16>> {
+        let slots = names
+            .iter()
+            .map(|n| self.bank.slot(n).with_context(|| format!("in {}", self.origin)))
+            .collect::<anyhow::Result<Vec<u16>>>()?;
+        let last = *slots.last().context("no material given")?;
+        Ok((0..channels)
+            .map(|c| slots.get(c).copied().unwrap_or(last))
+            .collect())
+    }
+}
