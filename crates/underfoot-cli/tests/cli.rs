@@ -610,7 +610,10 @@ fn demo_walks_across_every_builtin_material_and_each_stretch_matches_it() {
         assert!(lsd < 2.0, "{name}: {lsd:.2} dB");
     }
     for file in ["walk.svg", "spectra.svg", "walk-force.csv"] {
-        assert!(fs::metadata(dir.path().join(file)).unwrap().len() > 1000, "{file}");
+        assert!(
+            fs::metadata(dir.path().join(file)).unwrap().len() > 1000,
+            "{file}"
+        );
     }
     assert!(stdout(&o).contains("LSD dB"));
 }
@@ -620,9 +623,20 @@ fn render_of_a_generated_walk_is_reproducible_and_carries_the_force() {
     let dir = tempfile::tempdir().expect("tempdir");
     let render = |out: &str, seed: &str| {
         run(&[
-            "render", "--material", "snow", "--gait", "steps=3,channels=1", "--out",
-            s(&dir.path().join(out)), "--seed", seed, "--with-force", "--gain-db", "-20",
-            "--save-force", s(&dir.path().join("steps.csv")),
+            "render",
+            "--material",
+            "snow",
+            "--gait",
+            "steps=3,channels=1",
+            "--out",
+            s(&dir.path().join(out)),
+            "--seed",
+            seed,
+            "--with-force",
+            "--gain-db",
+            "-20",
+            "--save-force",
+            s(&dir.path().join("steps.csv")),
         ])
     };
     assert_ok(&render("a.wav", "1"));
@@ -641,14 +655,27 @@ fn render_of_a_generated_walk_is_reproducible_and_carries_the_force() {
     assert!((0.7..0.95).contains(&force_peak), "{force_peak}");
     // The saved track renders to the same vibration.
     let o = run(&[
-        "render", "--material", "snow", "--force", s(&dir.path().join("steps.csv")), "--out",
-        s(&dir.path().join("d.wav")), "--seed", "1", "--gain-db", "-20",
+        "render",
+        "--material",
+        "snow",
+        "--force",
+        s(&dir.path().join("steps.csv")),
+        "--out",
+        s(&dir.path().join("d.wav")),
+        "--seed",
+        "1",
+        "--gain-db",
+        "-20",
     ]);
     assert_ok(&o);
     let (_, d) = read_wav(&dir.path().join("d.wav"));
     let vib: Vec<f32> = a.iter().step_by(2).copied().collect();
     assert_eq!(vib.len(), d.len());
-    let diff = vib.iter().zip(&d).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max);
+    let diff = vib
+        .iter()
+        .zip(&d)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max);
     assert!(diff < 1e-6, "{diff}");
 }
 
@@ -665,14 +692,38 @@ fn render_of_a_bad_force_track_fails_and_keeps_the_old_wav() {
     ] {
         let csv = dir.path().join(name);
         fs::write(&csv, text).unwrap();
-        let o = run(&["render", "--material", "gravel", "--force", s(&csv), "--out", s(&out)]);
+        let o = run(&[
+            "render",
+            "--material",
+            "gravel",
+            "--force",
+            s(&csv),
+            "--out",
+            s(&out),
+        ]);
         let e = assert_error(&o);
         assert!(e.contains(name), "{name}: {e}");
         assert_eq!(fs::read(&out).unwrap(), b"previous render");
     }
-    let o = run(&["render", "--material", "granite", "--gait", "steps=1", "--out", s(&out)]);
+    let o = run(&[
+        "render",
+        "--material",
+        "granite",
+        "--gait",
+        "steps=1",
+        "--out",
+        s(&out),
+    ]);
     assert!(assert_error(&o).contains("granite"));
-    let o = run(&["render", "--material", "gravel", "--gait", "steps=1,speed=3", "--out", s(&out)]);
+    let o = run(&[
+        "render",
+        "--material",
+        "gravel",
+        "--gait",
+        "steps=1,speed=3",
+        "--out",
+        s(&out),
+    ]);
     assert!(assert_error(&o).contains("speed"));
     assert_eq!(fs::read(&out).unwrap(), b"previous render");
 }
@@ -683,8 +734,15 @@ fn run_plays_a_walk_live_into_a_paced_wav() {
     let wav = dir.path().join("live.wav");
     let started = std::time::Instant::now();
     let o = run(&[
-        "run", "--material", "wood", "--input", "gait:steps=2,channels=1,lead_in=0.2,tail=0.2",
-        "--output", &format!("wav:{}", s(&wav)), "--gain-db", "-20",
+        "run",
+        "--material",
+        "wood",
+        "--input",
+        "gait:steps=2,channels=1,lead_in=0.2,tail=0.2",
+        "--output",
+        &format!("wav:{}", s(&wav)),
+        "--gain-db",
+        "-20",
     ]);
     assert_ok(&o);
     let took = started.elapsed().as_secs_f64();
@@ -700,10 +758,22 @@ fn run_plays_a_walk_live_into_a_paced_wav() {
 fn run_rejects_bad_inputs_and_outputs_clearly() {
     let o = run(&["run", "--input", "tcp:1234", "--output", "null"]);
     assert!(assert_error(&o).contains("unknown kind"));
-    let o = run(&["run", "--input", "replay:/nonexistent.csv", "--output", "null"]);
+    let o = run(&[
+        "run",
+        "--input",
+        "replay:/nonexistent.csv",
+        "--output",
+        "null",
+    ]);
     assert!(assert_error(&o).contains("/nonexistent.csv"));
     let o = run(&["run", "--input", "gait:steps=1", "--output", "speaker"]);
     assert!(assert_error(&o).contains("speaker"));
-    let o = run(&["run", "--input", "serial:/dev/does-not-exist", "--output", "null"]);
+    let o = run(&[
+        "run",
+        "--input",
+        "serial:/dev/does-not-exist",
+        "--output",
+        "null",
+    ]);
     assert!(assert_error(&o).contains("/dev/does-not-exist"));
 }

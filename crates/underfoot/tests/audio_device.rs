@@ -294,16 +294,22 @@ fn jack_latency_from_threshold_crossing_to_first_output_sample() {
     })
     .expect("start on JACK");
     let idle = |ctl: &mut engine::Controller| {
-        ctl.send(TimedEvent::now(Event::Force { channel: 0, reading: SensorReading::single(0.0) }))
-            .unwrap();
+        ctl.send(TimedEvent::now(Event::Force {
+            channel: 0,
+            reading: SensorReading::single(0.0),
+        }))
+        .unwrap();
     };
     for _ in 0..100 {
         idle(&mut ctl);
         std::thread::sleep(Duration::from_millis(2));
     }
     let sent = base.elapsed().as_nanos() as u64;
-    ctl.send(TimedEvent::now(Event::Force { channel: 0, reading: SensorReading::single(700.0) }))
-        .unwrap();
+    ctl.send(TimedEvent::now(Event::Force {
+        channel: 0,
+        reading: SensorReading::single(700.0),
+    }))
+    .unwrap();
     std::thread::sleep(Duration::from_millis(200));
     let stats = output.stop();
     let callback = ONSET_CALLBACK_NS.load(Ordering::Relaxed);

@@ -69,7 +69,11 @@ struct SegmentReport {
 
 /// Runs `underfoot demo`.
 pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
-    anyhow::ensure!((1..=50).contains(&args.steps), "--steps {}: need 1 to 50", args.steps);
+    anyhow::ensure!(
+        (1..=50).contains(&args.steps),
+        "--steps {}: need 1 to 50",
+        args.steps
+    );
     let mut setup = args.synth.setup(1)?;
     let which = setup.origin.clone();
     emit(&format!(
@@ -87,7 +91,8 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         .map(|m| m.impulse_peak())
         .fold(0.0f32, f32::max);
     let strongest = setup.config.detector.max_intensity.min(1.3);
-    let headroom = setup.config.ceiling.0 - 3.0
+    let headroom = setup.config.ceiling.0
+        - 3.0
         - Decibels::from_amplitude(f64::from(loudest * strongest).max(1e-12)).0;
     setup.config.gain = Decibels(setup.config.gain.0.min(headroom));
 
@@ -96,11 +101,23 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     } else {
         GaitConfig::from_spec(&args.gait)?
     };
-    let names: Vec<&str> = setup.library.materials.iter().map(|m| m.name.as_str()).collect();
+    let names: Vec<&str> = setup
+        .library
+        .materials
+        .iter()
+        .map(|m| m.name.as_str())
+        .collect();
     let rate = setup.config.rate;
     let walk = walk_across(&setup.bank, &names, args.steps, &gait, rate)?;
     let first = walk.segments[0].slot;
-    let out = render(&setup.config, setup.bank.clone(), &[first], &walk.events, walk.frames, 256)?;
+    let out = render(
+        &setup.config,
+        setup.bank.clone(),
+        &[first],
+        &walk.events,
+        walk.frames,
+        256,
+    )?;
 
     let wav = args.out_dir.join("walk.wav");
     let mut sink = WavSink::create(&wav, rate, 1, WavFormat::Float32)?;
@@ -110,7 +127,10 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
 
     let mut segments = Vec::new();
     for seg in &walk.segments {
-        let (a, b) = (rate.samples_in(seg.start), rate.samples_in(seg.end).min(walk.frames));
+        let (a, b) = (
+            rate.samples_in(seg.start),
+            rate.samples_in(seg.end).min(walk.frames),
+        );
         let model = setup.library.get(&seg.material)?;
         let lsd = segment_lsd(&out.samples[a..b], rate, model, setup.config.gain)
             .with_context(|| format!("analysing the {} stretch of the walk", seg.material))?;
@@ -170,7 +190,11 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     let labels: Vec<Segment<'_>> = walk
         .segments
         .iter()
-        .map(|s| Segment { label: &s.material, start_s: s.start.0, end_s: s.end.0 })
+        .map(|s| Segment {
+            label: &s.material,
+            start_s: s.start.0,
+            end_s: s.end.0,
+        })
         .collect();
     let top = walk_top(&setup.library);
     let spectrogram = args.out_dir.join("walk.svg");

@@ -24,7 +24,12 @@ use crate::output::emit;
 #[command(group(ArgGroup::new("input").required(true).args(["force", "gait"])))]
 pub struct RenderArgs {
     /// Material of each channel, comma-separated (the last one serves the rest).
-    #[arg(long, value_name = "NAME[,NAME...]", value_delimiter = ',', required = true)]
+    #[arg(
+        long,
+        value_name = "NAME[,NAME...]",
+        value_delimiter = ',',
+        required = true
+    )]
     material: Vec<String>,
     /// Force track (CSV: `time_s,<channel>.<sensor>,...`, newtons).
     #[arg(long, value_name = "FILE.csv")]
@@ -92,7 +97,14 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let frames = last + rate.samples_in(Seconds(args.tail)) + 1;
 
     let started = Instant::now();
-    let out = render(&setup.config, setup.bank, &slots, &events, frames, args.block)?;
+    let out = render(
+        &setup.config,
+        setup.bank,
+        &slots,
+        &events,
+        frames,
+        args.block,
+    )?;
     let elapsed = started.elapsed().as_secs_f64();
 
     let force = args
@@ -106,7 +118,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         frame[..channels].copy_from_slice(&out.samples[i * channels..(i + 1) * channels]);
         if let Some(force) = &force {
             for c in 0..channels {
-                frame[channels + c] = force[c][i] / 1000.0;
+                frame[channels + c] = force[i * channels + c] / 1000.0;
             }
         }
         chunk.extend_from_slice(&frame);
@@ -151,16 +163,16 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Each channel's total force as the engine saw it (the same interpolation).
+/// Each channel's total force as the engine saw it (the same interpolation), interleaved.
 fn force_at_audio_rate(
     events: &[TimedEvent],
     channels: usize,
     frames: usize,
     rate: underfoot::units::SampleRate,
     sensor_rate: Hz,
-) -> Vec<Vec<f32>> {
+) -> Vec<f32> {
     let mut conditioners = vec![ForceConditioner::new(rate, sensor_rate); channels];
-    let mut force = vec![vec![0.0f32; frames]; channels];
+    let mut force = Vec::with_capacity(frames * channels);
     let mut next = 0;
     for i in 0..frames {
         while next < events.len() && events[next].at.unwrap_or(0) <= i as u64 {
@@ -171,9 +183,7 @@ fn force_at_audio_rate(
             }
             next += 1;
         }
-        for (c, cond) in conditioners.iter_mut().enumerate() {
-            force[c][i] = cond.next_total();
-        }
+        force.extend(conditioners.iter_mut().map(ForceConditioner::next_total));
     }
     force
 }

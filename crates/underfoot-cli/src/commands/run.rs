@@ -57,7 +57,12 @@ pub struct RunArgs {
     #[arg(long, default_value_t = 115_200, value_name = "BAUD")]
     baud: u32,
     /// Serial frame layout: sensors per channel, e.g. 2,2 (heel and toe of two feet).
-    #[arg(long, value_delimiter = ',', default_value = "2", value_name = "N[,N...]")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "2",
+        value_name = "N[,N...]"
+    )]
     layout: Vec<usize>,
     /// Newtons per ADC count of the serial sensors.
     #[arg(long = "newtons-per-count", default_value_t = 0.5, value_name = "N")]
@@ -76,7 +81,10 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     }
     let (mut source, track_channels, ends) = open_input(args)?;
     let channels = args.channels.or(track_channels).unwrap_or(1);
-    anyhow::ensure!((1..=64).contains(&channels), "--channels {channels}: need 1 to 64");
+    anyhow::ensure!(
+        (1..=64).contains(&channels),
+        "--channels {channels}: need 1 to 64"
+    );
     let setup = args.synth.setup(channels)?;
     let names = if args.material.is_empty() {
         vec![setup.library.materials[0].name.clone()]
@@ -86,14 +94,25 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let slots = setup.slots(&names, channels)?;
     // OSC names materials: give it the bank's names now that the bank exists.
     if let Input::OscPending(addr) = &source {
-        source = Input::Source(Box::new(OscSource::bind(addr, setup.bank.names(), channels)?));
+        source = Input::Source(Box::new(OscSource::bind(
+            addr,
+            setup.bank.names(),
+            channels,
+        )?));
     }
     let Input::Source(mut source) = source else {
         unreachable!("every input is opened above")
     };
     let rate = setup.config.rate;
     let (mut controller, engine) = engine::build(&setup.config, setup.bank, &slots)?;
-    let output = Output::start(&args.output, &args.host, args.buffer, channels, rate, engine)?;
+    let output = Output::start(
+        &args.output,
+        &args.host,
+        args.buffer,
+        channels,
+        rate,
+        engine,
+    )?;
     eprintln!("underfoot: {}", output.describe());
 
     let stop = Arc::new(AtomicBool::new(false));
@@ -107,7 +126,9 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         });
     }
     let started = Instant::now();
-    let deadline = args.duration.map(|d| started + Duration::from_secs_f64(d.max(0.0)));
+    let deadline = args
+        .duration
+        .map(|d| started + Duration::from_secs_f64(d.max(0.0)));
     let mut queue_full = 0u64;
     let mut ended_at = None;
     loop {
@@ -173,17 +194,29 @@ fn open_input(args: &RunArgs) -> anyhow::Result<(Input, Option<usize>, bool)> {
     Ok(match kind {
         "replay" => {
             let (file, speed) = match rest.rsplit_once('@') {
-                Some((f, s)) => (f, s.parse::<f64>().with_context(|| format!("replay speed {s:?}"))?),
+                Some((f, s)) => (
+                    f,
+                    s.parse::<f64>()
+                        .with_context(|| format!("replay speed {s:?}"))?,
+                ),
                 None => (rest, 1.0),
             };
             let track = ForceTrack::read(&PathBuf::from(file))?;
             let channels = track.channel_count();
-            (Input::Source(Box::new(ReplaySource::new(track, speed)?)), Some(channels), true)
+            (
+                Input::Source(Box::new(ReplaySource::new(track, speed)?)),
+                Some(channels),
+                true,
+            )
         }
         "gait" => {
             let g = gait::generate(&GaitConfig::from_spec(rest)?)?;
             let channels = g.track.channel_count();
-            (Input::Source(Box::new(ReplaySource::new(g.track, 1.0)?)), Some(channels), true)
+            (
+                Input::Source(Box::new(ReplaySource::new(g.track, 1.0)?)),
+                Some(channels),
+                true,
+            )
         }
         "serial" => {
             let config = SerialConfig {
@@ -193,10 +226,17 @@ fn open_input(args: &RunArgs) -> anyhow::Result<(Input, Option<usize>, bool)> {
                 newtons_per_count: args.newtons_per_count,
             };
             let layout = args.layout.len();
-            (Input::Source(Box::new(SerialSource::open(&config)?)), Some(layout), false)
+            (
+                Input::Source(Box::new(SerialSource::open(&config)?)),
+                Some(layout),
+                false,
+            )
         }
         "osc" => (Input::OscPending(rest.to_string()), None, false),
-        _ => bail!("--input {:?}: unknown kind {kind:?} (replay, gait, serial, osc)", args.input),
+        _ => bail!(
+            "--input {:?}: unknown kind {kind:?} (replay, gait, serial, osc)",
+            args.input
+        ),
     })
 }
 
@@ -224,10 +264,18 @@ impl Output {
         match kind {
             "audio" => start_audio(rest, host, buffer, channels, rate, engine),
             "wav" | "null" => {
-                anyhow::ensure!(kind == "null" || !rest.is_empty(), "--output wav:FILE needs a file");
+                anyhow::ensure!(
+                    kind == "null" || !rest.is_empty(),
+                    "--output wav:FILE needs a file"
+                );
                 let _ = host;
                 let sink = if kind == "wav" {
-                    Some(WavSink::create(rest, rate, channels as u16, WavFormat::Float32)?)
+                    Some(WavSink::create(
+                        rest,
+                        rate,
+                        channels as u16,
+                        WavFormat::Float32,
+                    )?)
                 } else {
                     None
                 };
@@ -240,7 +288,11 @@ impl Output {
                     let stop = Arc::clone(&stop);
                     thread::spawn(move || paced(engine, sink, channels, rate, block, &stop))
                 };
-                Ok(Output::Paced { thread: Some(thread), stop, what })
+                Ok(Output::Paced {
+                    thread: Some(thread),
+                    stop,
+                    what,
+                })
             }
             _ => bail!("--output {spec:?}: expected audio[:DEVICE], wav:FILE or null"),
         }
@@ -257,7 +309,8 @@ impl Output {
                     i.host,
                     i.channels,
                     i.rate,
-                    i.buffer_frames.map_or("default".to_string(), |b| format!("{b} frames")),
+                    i.buffer_frames
+                        .map_or("default".to_string(), |b| format!("{b} frames")),
                     i.sample_format
                 )
             }
@@ -293,7 +346,9 @@ impl Output {
                         .map_or("unknown".to_string(), |l| format!("{:.2} ms", l.0 * 1e3))
                 ))
             }
-            Output::Paced { mut thread, stop, .. } => {
+            Output::Paced {
+                mut thread, stop, ..
+            } => {
                 stop.store(true, Ordering::SeqCst);
                 match thread.take().map(thread::JoinHandle::join) {
                     Some(Ok(result)) => result,
@@ -315,7 +370,9 @@ fn start_audio(
 ) -> anyhow::Result<Output> {
     use underfoot::io::audio::{AudioConfig, AudioOutput};
     let config = AudioConfig {
-        host: host.parse().map_err(|e| anyhow::anyhow!("--host {host:?}: {e}"))?,
+        host: host
+            .parse()
+            .map_err(|e| anyhow::anyhow!("--host {host:?}: {e}"))?,
         device: (!device.is_empty()).then(|| device.to_string()),
         channels: channels as u16,
         rate,
@@ -344,7 +401,9 @@ fn start_audio(
 
 #[cfg(feature = "audio")]
 fn list_devices(host: &str) -> anyhow::Result<()> {
-    let host = host.parse().map_err(|e| anyhow::anyhow!("--host {host:?}: {e}"))?;
+    let host = host
+        .parse()
+        .map_err(|e| anyhow::anyhow!("--host {host:?}: {e}"))?;
     let mut text = String::new();
     for d in underfoot::io::audio::list_devices(host)? {
         text.push_str(&format!(
@@ -352,7 +411,11 @@ fn list_devices(host: &str) -> anyhow::Result<()> {
             d.name,
             d.description,
             d.max_channels,
-            d.rates.iter().map(|r| r.0.to_string()).collect::<Vec<_>>().join(",")
+            d.rates
+                .iter()
+                .map(|r| r.0.to_string())
+                .collect::<Vec<_>>()
+                .join(",")
         ));
     }
     emit(&text)
@@ -400,5 +463,7 @@ fn paced(
         }
         None => String::new(),
     };
-    Ok(format!("paced output: {blocks} buffer(s), {late} late{written}"))
+    Ok(format!(
+        "paced output: {blocks} buffer(s), {late} late{written}"
+    ))
 }

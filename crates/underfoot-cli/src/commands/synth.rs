@@ -28,7 +28,12 @@ pub struct SynthArgs {
     #[arg(long, default_value_t = 48_000, value_name = "HZ")]
     pub rate: u32,
     /// Output gain before the limiter, in dB.
-    #[arg(long = "gain-db", default_value_t = 0.0, value_name = "DB", allow_hyphen_values = true)]
+    #[arg(
+        long = "gain-db",
+        default_value_t = 0.0,
+        value_name = "DB",
+        allow_hyphen_values = true
+    )]
     pub gain_db: f64,
     /// Limiter ceiling in dB relative to full scale (at most 0).
     #[arg(long = "ceiling-db", default_value_t = -6.0, value_name = "DB", allow_hyphen_values = true)]
@@ -77,10 +82,10 @@ impl SynthArgs {
             self.sensor_rate
         );
         let library = open(self.library.as_deref())?.into_owned();
-        let origin = self
-            .library
-            .as_ref()
-            .map_or_else(|| "the built-in library".to_string(), |p| p.display().to_string());
+        let origin = self.library.as_ref().map_or_else(
+            || "the built-in library".to_string(),
+            |p| p.display().to_string(),
+        );
         anyhow::ensure!(!library.materials.is_empty(), "{origin} has no materials");
         let rate = SampleRate(self.rate);
         let weight = Newtons::weight_of(self.weight_kg);
@@ -126,7 +131,11 @@ impl Setup {
     pub fn slots(&self, names: &[String], channels: usize) -> anyhow::Result<Vec<u16>> {
         let slots = names
             .iter()
-            .map(|n| self.bank.slot(n).with_context(|| format!("in {}", self.origin)))
+            .map(|n| {
+                self.bank
+                    .slot(n)
+                    .with_context(|| format!("in {}", self.origin))
+            })
             .collect::<anyhow::Result<Vec<u16>>>()?;
         let last = *slots.last().context("no material given")?;
         Ok((0..channels)

@@ -363,6 +363,12 @@ impl Controller {
 pub struct Engine {
     rate: SampleRate,
     channels: Vec<Channel>,
+    // Boxed so that a replacement is a pointer swap on the audio thread, and the old one
+    // goes back to the controller to be freed there.
+    #[allow(
+        clippy::vec_box,
+        reason = "materials are swapped by pointer and freed elsewhere"
+    )]
     bank: Vec<Box<PreparedMaterial>>,
     limiters: Vec<Limiter>,
     fader: Fader,

@@ -282,7 +282,7 @@ impl ModalFilter {
         let mut rhs = DVector::<f64>::zeros(rows);
         for (g, f) in grid.iter().enumerate() {
             let t = target(*f);
-            if !(t.norm() > 0.0) || !t.is_finite() {
+            if !t.is_finite() || t.norm() == 0.0 {
                 return Err(ModalError::Unsolvable("the target is zero or not finite"));
             }
             let weight = 1.0 / t.norm();

@@ -476,7 +476,6 @@ impl Voice {
     }
 
     /// The poles, for tests.
-    #[must_use]
     pub fn poles(&self) -> impl Iterator<Item = Complex64> + '_ {
         (0..self.lanes).map(|k| Complex64::new(self.pole_re[k].into(), self.pole_im[k].into()))
     }
