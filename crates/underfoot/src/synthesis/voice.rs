@@ -635,6 +635,57 @@ mod tests {
         }
     }
 
+    /// Every step sounds a little different: the magnitude spectrum of each perturbed
+    /// step differs from the unperturbed one by a few percent (RMS over the band), and
+    /// no two steps are alike.
+    #[test]
+    fn each_step_has_its_own_spectrum_a_few_percent_off() {
+        let rate = SampleRate(48_000);
+        let model = builtin().get("gravel").unwrap();
+        let m = PreparedMaterial::prepare(model, rate, &VoiceConfig::default()).unwrap();
+        let grid = model.band_hz.log_grid(48);
+        let n = rate.samples_in(Seconds(0.5));
+        let spectrum = |voice: &mut Voice| -> Vec<f64> {
+            let mut x = vec![0.0f32; n];
+            x[0] = 1.0;
+            let mut y = vec![0.0f32; n];
+            voice.reset();
+            voice.process(&x, &mut y);
+            grid.iter()
+                .map(|f| {
+                    let omega = rate.omega(*f);
+                    y.iter()
+                        .enumerate()
+                        .map(|(k, v)| f64::from(*v) * Complex64::from_polar(1.0, -omega * k as f64))
+                        .sum::<Complex64>()
+                        .norm()
+                })
+                .collect()
+        };
+        let mut voice = Voice::new();
+        voice.load(&m, DriveKind::Impulse);
+        let base = spectrum(&mut voice);
+        let mut rng = SplitMix64::new(11);
+        let mut steps = Vec::new();
+        for _ in 0..20 {
+            voice.perturb(&mut rng, 0.01);
+            steps.push(spectrum(&mut voice));
+        }
+        let rel = |a: &[f64], b: &[f64]| {
+            (a.iter().zip(b).map(|(x, y)| ((x - y) / y).powi(2)).sum::<f64>() / a.len() as f64).sqrt()
+        };
+        let changes: Vec<f64> = steps.iter().map(|s| rel(s, &base)).collect();
+        let mean = changes.iter().sum::<f64>() / changes.len() as f64;
+        assert!(changes.iter().all(|c| (0.002..0.1).contains(c)), "{changes:?}");
+        assert!((0.005..0.05).contains(&mean), "mean change {mean}");
+        for i in 0..steps.len() {
+            for j in i + 1..steps.len() {
+                assert!(rel(&steps[i], &steps[j]) > 1e-3, "steps {i} and {j} alike");
+            }
+        }
+        println!("per-step spectral change: mean {:.2}%, max {:.2}%", 100.0 * mean, 100.0 * changes.iter().fold(0.0f64, |m, c| m.max(*c)));
+    }
+
     #[test]
     fn perturbation_keeps_poles_and_changes_numerators_by_about_one_percent() {
         let m = prepared("snow");
