@@ -9,13 +9,9 @@ use underfoot::units::{Newtons, SampleRate};
 
 const RATE: SampleRate = SampleRate(48_000);
 
-/// A smooth stance-shaped force for calibration: 0.6 s, peak 1.1 body weights.
+/// The gait model's nominal step, which calibrates the force drives.
 fn nominal_step() -> Vec<f64> {
-    let w = Newtons::weight_of(70.0).0;
-    let n = RATE.samples_in(underfoot::units::Seconds(0.6));
-    (0..n)
-        .map(|i| 1.1 * w * (std::f64::consts::PI * i as f64 / n as f64).sin().powi(2))
-        .collect()
+    underfoot::force::gait::nominal_step(70.0, 1.8, RATE.hz())
 }
 
 fn bank() -> MaterialBank {
@@ -328,4 +324,69 @@ fn start_and_stop_fade_without_a_pop() {
         .map(|w| (w[1] - w[0]).abs())
         .fold(0.0, f32::max);
     assert!(steps < 0.5 * peak.max(1e-9));
+}
+
+/// A material no fit would produce: a resonance at the edge of stability with a gain of
+/// a million. The limiter still lets nothing above the ceiling through.
+#[test]
+fn the_limiter_holds_against_a_pathological_filter() {
+    use underfoot::material::{FilterCoefficients, FitRecord, MaterialModel};
+    use underfoot::signal::{Biquad, Sos};
+    use underfoot::synthesis::PreparedMaterial;
+    use underfoot::units::{Band, Decibels};
+
+    let r: f64 = 0.999_999;
+    let theta = 2.0 * std::f64::consts::PI * 100.0 / 2000.0;
+    let sos = Sos::new(vec![Biquad {
+        b: [1e6, 0.0, -1e6],
+        a: [1.0, -2.0 * r * theta.cos(), r * r],
+    }]);
+    let model = MaterialModel {
+        name: "pathological".into(),
+        sample_rate: SampleRate(2000),
+        band_hz: Band::new(20.0, 900.0),
+        order: 2,
+        filter: FilterCoefficients::from_sos(&sos),
+        fit: FitRecord {
+            grid_hz: vec![],
+            measured: vec![],
+            model: vec![],
+            nrmse: 0.0,
+            lsd_db: 0.0,
+            method: String::new(),
+            strikes: 0,
+            fit_seconds: 0.0,
+        },
+        sources: vec![],
+    };
+    let prepared = PreparedMaterial::prepare(&model, RATE, &VoiceConfig::default()).unwrap();
+    assert_eq!(prepared.limited_modes, 1, "its decay is limited");
+    let bank = MaterialBank::from_prepared(vec![prepared]);
+    let config = EngineConfig {
+        ceiling: Decibels(-12.0),
+        ..EngineConfig::default()
+    };
+    let (mut ctl, mut eng) = engine::build(&config, bank, &[0]).unwrap();
+    for k in 0..20u64 {
+        ctl.send(TimedEvent::at(
+            k * 2400,
+            Event::Step {
+                channel: 0,
+                intensity: 4.0,
+            },
+        ))
+        .unwrap();
+    }
+    let mut out = vec![0.0f32; 48_000];
+    for chunk in out.chunks_mut(64) {
+        eng.process(chunk, 1);
+    }
+    let ceiling = Decibels(-12.0).to_amplitude() as f32;
+    let peak = out.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    assert!(out.iter().all(|v| v.is_finite()));
+    assert!(
+        peak <= ceiling && peak > 0.9 * ceiling,
+        "peak {peak}, ceiling {ceiling}"
+    );
+    assert!(ctl.telemetry().limited > 1000);
 }

@@ -672,18 +672,30 @@ mod tests {
             steps.push(spectrum(&mut voice));
         }
         let rel = |a: &[f64], b: &[f64]| {
-            (a.iter().zip(b).map(|(x, y)| ((x - y) / y).powi(2)).sum::<f64>() / a.len() as f64).sqrt()
+            (a.iter()
+                .zip(b)
+                .map(|(x, y)| ((x - y) / y).powi(2))
+                .sum::<f64>()
+                / a.len() as f64)
+                .sqrt()
         };
         let changes: Vec<f64> = steps.iter().map(|s| rel(s, &base)).collect();
         let mean = changes.iter().sum::<f64>() / changes.len() as f64;
-        assert!(changes.iter().all(|c| (0.002..0.1).contains(c)), "{changes:?}");
+        assert!(
+            changes.iter().all(|c| (0.002..0.1).contains(c)),
+            "{changes:?}"
+        );
         assert!((0.005..0.05).contains(&mean), "mean change {mean}");
         for i in 0..steps.len() {
             for j in i + 1..steps.len() {
                 assert!(rel(&steps[i], &steps[j]) > 1e-3, "steps {i} and {j} alike");
             }
         }
-        println!("per-step spectral change: mean {:.2}%, max {:.2}%", 100.0 * mean, 100.0 * changes.iter().fold(0.0f64, |m, c| m.max(*c)));
+        println!(
+            "per-step spectral change: mean {:.2}%, max {:.2}%",
+            100.0 * mean,
+            100.0 * changes.iter().fold(0.0f64, |m, c| m.max(*c))
+        );
     }
 
     #[test]
