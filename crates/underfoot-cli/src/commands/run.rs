@@ -5,7 +5,8 @@
 //! lock-free queue. `wav:` and `null` outputs are paced by a thread that renders one
 //! buffer per buffer period, like a device would, so a session can run without one.
 //! A session ends when a replay or walk has played out (plus one second to ring out),
-//! after `--duration`, or on Enter when stdin is a terminal; the output then fades out.
+//! after `--duration`, on Ctrl-C or SIGTERM, or on Enter when stdin is a terminal; the
+//! output then fades out before the device is closed.
 
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -116,9 +117,16 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     eprintln!("underfoot: {}", output.describe());
 
     let stop = Arc::new(AtomicBool::new(false));
+    {
+        // Ctrl-C (and SIGTERM) end the session through the fade-out like any other stop:
+        // killing the stream mid-vibration would put a step on the actuator.
+        let stop = Arc::clone(&stop);
+        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst))
+            .context("installing the Ctrl-C handler")?;
+    }
     if std::io::stdin().is_terminal() {
         let stop = Arc::clone(&stop);
-        eprintln!("underfoot: running; press Enter to stop");
+        eprintln!("underfoot: running; press Enter or Ctrl-C to stop");
         thread::spawn(move || {
             let mut line = String::new();
             let _ = std::io::stdin().read_line(&mut line);
