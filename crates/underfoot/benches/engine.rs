@@ -4,6 +4,7 @@
 //!   low-pass and the DC-blocking high-pass) for one second at 48 kHz, walking (a strike
 //!   every half second). Criterion's throughput is voice-samples per second; divided by
 //!   48 000 it is the number of channels one core runs in real time.
+//! - `voice/order-12 modes only`: the same without the post filter, to show its share.
 //! - `engine/64-frame block`: the whole engine (event handling, 16 channels walking,
 //!   limiter, fades) for one 64-frame block; against the block's 1.33 ms of real time.
 
@@ -38,6 +39,24 @@ fn voice(c: &mut Criterion) {
         b.iter(|| {
             v.perturb(&mut rng, 0.01);
             black_box(v.process(black_box(&x), &mut y));
+        });
+    });
+    let bare = PreparedMaterial::prepare(
+        model,
+        RATE,
+        &VoiceConfig {
+            lowpass_order: 0,
+            highpass_cutoff: Some(underfoot::units::Hz(0.0)),
+            ..VoiceConfig::default()
+        },
+    )
+    .unwrap();
+    let mut w = Voice::new();
+    w.load(&bare, DriveKind::Impulse);
+    group.bench_function("order-12 modes only", |b| {
+        b.iter(|| {
+            w.perturb(&mut rng, 0.01);
+            black_box(w.process(black_box(&x), &mut y));
         });
     });
     group.finish();

@@ -132,7 +132,7 @@ pub enum VoiceError {
 }
 
 /// A transposed direct-form II biquad in `f32`, for the post filter.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 struct Section {
     b: [f32; 3],
     a: [f32; 2],
@@ -140,6 +140,13 @@ struct Section {
 }
 
 impl Section {
+    /// Passes its input through: what the unused sections hold.
+    const IDENTITY: Self = Self {
+        b: [1.0, 0.0, 0.0],
+        a: [0.0, 0.0],
+        s: [0.0, 0.0],
+    };
+
     #[inline]
     fn tick(&mut self, x: f32) -> f32 {
         let y = self.b[0] * x + self.s[0];
@@ -270,7 +277,7 @@ impl PreparedMaterial {
             res_re: [0.0; MAX_MODES],
             res_im: [0.0; MAX_MODES],
             direct: modal.direct as f32,
-            sections: [Section::default(); MAX_POST_SECTIONS],
+            sections: [Section::IDENTITY; MAX_POST_SECTIONS],
             section_count: post.sections.len(),
             post,
             modal,
@@ -368,6 +375,8 @@ pub struct Voice {
     sections: [Section; MAX_POST_SECTIONS],
     section_count: usize,
     gain: f32,
+    /// Samples processed since the material was loaded.
+    clock: u64,
 }
 
 impl Default for Voice {
@@ -379,6 +388,8 @@ impl Default for Voice {
 /// States below this are flushed to zero at the end of a block: a decayed mode would
 /// otherwise go subnormal, where arithmetic is a hundred times slower.
 const FLUSH: f32 = 1e-20;
+/// How many samples run between flushes.
+const FLUSH_EVERY: usize = 64;
 
 impl Voice {
     /// A silent voice with no material.
@@ -396,9 +407,10 @@ impl Voice {
             state_im: [0.0; MAX_MODES],
             base_direct: 0.0,
             direct: 0.0,
-            sections: [Section::default(); MAX_POST_SECTIONS],
+            sections: [Section::IDENTITY; MAX_POST_SECTIONS],
             section_count: 0,
             gain: 0.0,
+            clock: 0,
         }
     }
 
@@ -417,6 +429,7 @@ impl Voice {
         self.sections = m.sections;
         self.section_count = m.section_count;
         self.gain = m.drive_gain[drive.index()];
+        self.clock = 0;
         self.reset();
     }
 
@@ -485,19 +498,58 @@ impl Voice {
     /// Returns the number of non-finite samples met: each resets the voice's state and
     /// is written as zero, so a bad coefficient or input can never reach the output.
     pub fn process(&mut self, input: &[f32], out: &mut [f32]) -> u32 {
-        // One monomorphised loop per group count, so that the whole state lives in
-        // registers for the block instead of going through memory at every sample.
-        let resets = match self.lanes / LANES {
-            0 => self.run::<0>(input, out),
-            1 => self.run::<1>(input, out),
-            2 => self.run::<2>(input, out),
-            3 => self.run::<3>(input, out),
-            4 => self.run::<4>(input, out),
-            5 => self.run::<5>(input, out),
-            6 => self.run::<6>(input, out),
-            7 => self.run::<7>(input, out),
-            _ => self.run::<{ MAX_MODES / LANES }>(input, out),
-        };
+        // In short stretches, flushing tiny states after each: a decayed mode would
+        // otherwise go subnormal within a long block, where f32 arithmetic is a hundred
+        // times slower.
+        // The flushes fall on the voice's own sample clock, not on the caller's blocks, so
+        // the output does not depend on how it is cut into blocks.
+        let n = input.len().min(out.len());
+        let mut resets = 0;
+        let mut start = 0;
+        while start < n {
+            let until_flush = FLUSH_EVERY - (self.clock % FLUSH_EVERY as u64) as usize;
+            let len = until_flush.min(n - start);
+            resets +=
+                self.process_stretch(&input[start..start + len], &mut out[start..start + len]);
+            self.clock += len as u64;
+            if self.clock % FLUSH_EVERY as u64 == 0 {
+                self.flush_tiny_states();
+            }
+            start += len;
+        }
+        resets
+    }
+
+    fn process_stretch(&mut self, input: &[f32], out: &mut [f32]) -> u32 {
+        // One monomorphised loop per group and post-section count, so that the whole state
+        // lives in registers for the block instead of going through memory at every
+        // sample. Past four sections, the spare ones pass their input through.
+        macro_rules! sections {
+            ($g:literal) => {
+                match self.section_count {
+                    0 => self.run::<$g, 0>(input, out),
+                    1 => self.run::<$g, 1>(input, out),
+                    2 => self.run::<$g, 2>(input, out),
+                    3 => self.run::<$g, 3>(input, out),
+                    4 => self.run::<$g, 4>(input, out),
+                    _ => self.run::<$g, MAX_POST_SECTIONS>(input, out),
+                }
+            };
+        }
+        match self.lanes / LANES {
+            0 => sections!(0),
+            1 => sections!(1),
+            2 => sections!(2),
+            3 => sections!(3),
+            4 => sections!(4),
+            5 => sections!(5),
+            6 => sections!(6),
+            7 => sections!(7),
+            _ => sections!(8),
+        }
+    }
+
+    fn flush_tiny_states(&mut self) {
         for k in 0..self.lanes.min(MAX_MODES) {
             if self.state_re[k].abs() < FLUSH && self.state_im[k].abs() < FLUSH {
                 self.state_re[k] = 0.0;
@@ -511,10 +563,9 @@ impl Voice {
                 }
             }
         }
-        resets
     }
 
-    fn run<const G: usize>(&mut self, input: &[f32], out: &mut [f32]) -> u32 {
+    fn run<const G: usize, const S: usize>(&mut self, input: &[f32], out: &mut [f32]) -> u32 {
         let group = |a: &[f32; MAX_MODES]| -> [[f32; LANES]; G] {
             std::array::from_fn(|g| std::array::from_fn(|j| a[g * LANES + j]))
         };
@@ -525,8 +576,7 @@ impl Voice {
             group(&self.res_im),
         );
         let (mut sr, mut si) = (group(&self.state_re), group(&self.state_im));
-        let count = self.section_count.min(MAX_POST_SECTIONS);
-        let mut sections = self.sections;
+        let mut sections: [Section; S] = std::array::from_fn(|i| self.sections[i]);
         let (gain, direct) = (self.gain, self.direct);
         let mut resets = 0;
         for (x, y) in input.iter().zip(out.iter_mut()) {
@@ -542,7 +592,7 @@ impl Voice {
                 }
             }
             let mut v = direct * x + ((acc[0] + acc[1]) + (acc[2] + acc[3]));
-            for s in &mut sections[..count] {
+            for s in &mut sections {
                 v = s.tick(v);
             }
             if v.is_finite() {
@@ -563,7 +613,7 @@ impl Voice {
                 self.state_im[g * LANES + j] = si[g][j];
             }
         }
-        self.sections = sections;
+        self.sections[..S].copy_from_slice(&sections);
         resets
     }
 }
