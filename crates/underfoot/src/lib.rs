@@ -116,6 +116,7 @@ pub mod fit;
 pub mod force;
 pub mod io;
 pub mod material;
+pub mod physical;
 pub mod recording;
 pub mod safety;
 pub mod signal;

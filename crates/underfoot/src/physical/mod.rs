@@ -1,0 +1,94 @@
+//! Physical models: a hammer striking a resonating surface.
+//!
+//! The other synthesis path ([`crate::synthesis`]) plays back what was measured. This
+//! one computes it from physics, as in the aggregate model of a vibrotactile floor tile:
+//! an impact (a lumped mass meeting a nonlinear contact spring and damper) drives a bank of
+//! damped modes (the surface), and the vibration is the surface's motion at the contact
+//! point.
+//!
+//! - [`resonator`]: the surface, a [`ResonatorBank`] of modes discretised by impulse
+//!   invariance, also available as second-order sections for interchange;
+//! - [`impact`]: the Hunt-Crossley contact between a hammer and a rigid or resonating
+//!   surface, integrated by an energy-consistent implicit step.
+//!
+//! Both are prepared once (where they may allocate and validate) and then run without
+//! allocating or panicking.
+
+pub mod impact;
+pub mod resonator;
+
+pub use impact::{Impact, ImpactParams, Surface};
+pub use resonator::{Mode, ResonatorBank};
+
+use crate::units::{Hz, SampleRate, Seconds};
+
+/// What is wrong with the parameters of a physical model.
+///
+/// Every payload is a number or a `&'static str`, so the error can be built on the audio
+/// thread (by [`Impact::strike`]) without allocating.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum PhysicalError {
+    /// The sample rate is zero.
+    #[error("the sample rate must be positive")]
+    ZeroRate,
+    /// A resonator bank was asked for without any mode.
+    #[error("a resonator bank needs at least one mode")]
+    NoModes,
+    /// A mode's frequency is not strictly between 0 and the Nyquist frequency.
+    #[error("mode {index}: frequency {frequency} is not in (0, {nyquist})")]
+    FrequencyOutOfRange {
+        /// Which mode.
+        index: usize,
+        /// Its frequency.
+        frequency: Hz,
+        /// The Nyquist frequency of the rate asked for.
+        nyquist: Hz,
+    },
+    /// A mode's decay time is not positive and finite.
+    #[error("mode {index}: decay time {decay} must be positive and finite")]
+    BadDecay {
+        /// Which mode.
+        index: usize,
+        /// Its decay time.
+        decay: Seconds,
+    },
+    /// A mode's gain is not finite.
+    #[error("mode {index}: gain {gain} must be finite")]
+    BadGain {
+        /// Which mode.
+        index: usize,
+        /// Its gain.
+        gain: f64,
+    },
+    /// A mode of a struck surface has a negative gain: a driving-point mobility has
+    /// non-negative modal gains (each is the square of a mode shape over a modal mass).
+    #[error("mode {index}: gain {gain} is negative, impossible at the point struck")]
+    NegativeDrivingPointGain {
+        /// Which mode.
+        index: usize,
+        /// Its gain.
+        gain: f64,
+    },
+    /// A scalar parameter is out of its range.
+    #[error("{name} = {value} is out of range: {expected}")]
+    InvalidParameter {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// The range it must lie in.
+        expected: &'static str,
+    },
+    /// The surface was prepared for another sample rate than the impact.
+    #[error("the surface runs at {surface}, the impact at {impact}")]
+    RateMismatch {
+        /// The surface's rate.
+        surface: SampleRate,
+        /// The impact's rate.
+        impact: SampleRate,
+    },
+    /// The bank could not be factored into second-order sections.
+    #[error("cannot factor the resonator bank into sections: {0}")]
+    Factorisation(&'static str),
+}
