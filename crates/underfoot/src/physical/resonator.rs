@@ -280,3 +280,216 @@ impl ResonatorBank {
         Ok(Sos::new(sections))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{DMatrix, DVector};
+
+    fn three_modes() -> [Mode; 3] {
+        [
+            Mode {
+                frequency: Hz(60.0),
+                decay: Seconds(0.2),
+                gain: 1.0,
+            },
+            Mode {
+                frequency: Hz(250.0),
+                decay: Seconds(0.08),
+                gain: 0.5,
+            },
+            Mode {
+                frequency: Hz(1200.0),
+                decay: Seconds(0.03),
+                gain: 0.2,
+            },
+        ]
+    }
+
+    /// Prony's method: the modes of a sum of damped sinusoids from its samples alone, by
+    /// the least-squares linear recursion `y[n] = -Σ a_i y[n-i]` and its roots.
+    fn prony(y: &[f64], modes: usize, rate: SampleRate) -> Vec<(f64, f64)> {
+        let order = 2 * modes;
+        let rows = y.len() - order;
+        let m = DMatrix::from_fn(rows, order, |r, c| y[r + order - 1 - c]);
+        let rhs = DVector::from_fn(rows, |r, _| -y[r + order]);
+        let a = m.svd(true, true).solve(&rhs, 1e-300).unwrap();
+        let mut poly = vec![1.0];
+        poly.extend(a.iter());
+        let mut found: Vec<(f64, f64)> = crate::fit::roots::roots(&poly)
+            .unwrap()
+            .into_iter()
+            .filter(|p| p.im > 0.0)
+            .map(|p| {
+                (
+                    p.arg() * rate.hz() / std::f64::consts::TAU,
+                    -1.0 / (rate.hz() * p.norm().ln()),
+                )
+            })
+            .collect();
+        found.sort_by(|a, b| a.0.total_cmp(&b.0));
+        found
+    }
+
+    #[test]
+    fn impulse_response_has_the_requested_frequencies_and_decays() {
+        for rate in [SampleRate(48_000), SampleRate(8_000)] {
+            let bank = ResonatorBank::new(&three_modes(), rate).unwrap();
+            // Long enough for the slowest mode, short of the fastest one's underflow.
+            let h = bank.impulse_response(rate.samples_in(Seconds(0.5)));
+            let found = prony(&h, 3, rate);
+            assert_eq!(found.len(), 3, "at {rate}");
+            for (m, (f, tau)) in three_modes().iter().zip(&found) {
+                let df = (f / m.frequency.0 - 1.0).abs();
+                let dtau = (tau / m.decay.0 - 1.0).abs();
+                eprintln!(
+                    "{rate}: {} -> f err {df:.2e}, tau err {dtau:.2e}",
+                    m.frequency
+                );
+                assert!(
+                    df < 0.01 && dtau < 0.01,
+                    "{rate}: {m:?} measured {f} Hz, {tau} s"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn one_mode_zero_crossings_and_log_envelope() {
+        for rate in [SampleRate(48_000), SampleRate(8_000)] {
+            for m in three_modes() {
+                let bank = ResonatorBank::new(&[m], rate).unwrap();
+                let h = bank.impulse_response(rate.samples_in(Seconds(4.0 * m.decay.0)));
+                // Upward zero crossings, interpolated: one per period.
+                let ups: Vec<f64> = (1..h.len())
+                    .filter(|&n| h[n - 1] < 0.0 && h[n] >= 0.0)
+                    .map(|n| (n - 1) as f64 + h[n - 1] / (h[n - 1] - h[n]))
+                    .collect();
+                let periods = (ups.len() - 1) as f64;
+                let f = periods * rate.hz() / (ups[ups.len() - 1] - ups[0]);
+                // Log-envelope: the RMS over each whole period falls as e^{-t/tau}; the
+                // slope of its logarithm, by least squares, is -1/tau.
+                let (mut t, mut l) = (Vec::new(), Vec::new());
+                for w in ups.windows(2) {
+                    let (a, b) = (w[0].ceil() as usize, w[1].ceil() as usize);
+                    let ms: f64 = h[a..b].iter().map(|v| v * v).sum::<f64>() / (b - a) as f64;
+                    t.push(0.5 * (w[0] + w[1]) / rate.hz());
+                    l.push(0.5 * ms.ln());
+                }
+                let n = t.len() as f64;
+                let (mt, ml) = (t.iter().sum::<f64>() / n, l.iter().sum::<f64>() / n);
+                let slope = t
+                    .iter()
+                    .zip(&l)
+                    .map(|(a, b)| (a - mt) * (b - ml))
+                    .sum::<f64>()
+                    / t.iter().map(|a| (a - mt).powi(2)).sum::<f64>();
+                let tau = -1.0 / slope;
+                let df = (f / m.frequency.0 - 1.0).abs();
+                let dtau = (tau / m.decay.0 - 1.0).abs();
+                eprintln!(
+                    "{rate}: {} -> crossings f err {df:.2e}, envelope tau err {dtau:.2e}",
+                    m.frequency
+                );
+                assert!(df < 0.01, "{rate}: {m:?} measured {f} Hz");
+                assert!(dtau < 0.01, "{rate}: {m:?} measured {tau} s");
+            }
+        }
+    }
+
+    #[test]
+    fn sections_give_the_same_impulse_response() {
+        for rate in [SampleRate(48_000), SampleRate(8_000)] {
+            let bank = ResonatorBank::new(&three_modes(), rate).unwrap();
+            let sos = bank.to_sos().unwrap();
+            assert!(sos.is_stable());
+            assert_eq!(sos.sections.len(), 3);
+            let n = rate.samples_in(Seconds(0.3));
+            let a = bank.impulse_response(n);
+            let b = sos.impulse_response(n);
+            let peak = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let err = a
+                .iter()
+                .zip(&b)
+                .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+            eprintln!("{rate}: sos max error {:.2e} of peak", err / peak);
+            assert!(err < 1e-8 * peak, "{rate}: {err} against {peak}");
+        }
+    }
+
+    #[test]
+    fn tick_and_block_agree_and_velocity_is_the_derivative() {
+        let rate = SampleRate(48_000);
+        let mut a = ResonatorBank::new(&three_modes(), rate).unwrap();
+        let mut b = a.clone();
+        let mut x: Vec<f64> = (0..500).map(|n| ((n * 7919) % 13) as f64 - 6.0).collect();
+        let ticked: Vec<f64> = x.iter().map(|&v| a.tick(v)).collect();
+        for chunk in x.chunks_mut(37) {
+            b.process_in_place(chunk);
+        }
+        assert_eq!(ticked, x);
+        // After an impulse the bank rings freely: its velocity is the slope of its path.
+        let mut c = ResonatorBank::new(&three_modes(), rate).unwrap();
+        c.tick(1.0);
+        for _ in 0..100 {
+            c.tick(0.0);
+        }
+        let (y0, v0) = (c.displacement(), c.velocity());
+        let y1 = c.tick(0.0);
+        let _ = y1;
+        let y2 = c.displacement();
+        let slope = (y2 - y0) * rate.hz();
+        assert!(
+            (slope - v0).abs() < 0.02 * v0.abs().max(1e-3),
+            "{slope} vs {v0}"
+        );
+    }
+
+    #[test]
+    fn bad_modes_are_errors() {
+        let rate = SampleRate(8000);
+        let good = three_modes()[0];
+        let with = |f: f64, tau: f64, g: f64| {
+            ResonatorBank::new(
+                &[
+                    good,
+                    Mode {
+                        frequency: Hz(f),
+                        decay: Seconds(tau),
+                        gain: g,
+                    },
+                ],
+                rate,
+            )
+        };
+        assert!(matches!(
+            with(4000.0, 0.1, 1.0),
+            Err(PhysicalError::FrequencyOutOfRange { index: 1, .. })
+        ));
+        assert!(matches!(
+            with(0.0, 0.1, 1.0),
+            Err(PhysicalError::FrequencyOutOfRange { .. })
+        ));
+        assert!(matches!(
+            with(f64::NAN, 0.1, 1.0),
+            Err(PhysicalError::FrequencyOutOfRange { .. })
+        ));
+        assert!(matches!(
+            with(100.0, 0.0, 1.0),
+            Err(PhysicalError::BadDecay { .. })
+        ));
+        assert!(matches!(
+            with(100.0, f64::INFINITY, 1.0),
+            Err(PhysicalError::BadDecay { .. })
+        ));
+        assert!(matches!(
+            with(100.0, 0.1, f64::NAN),
+            Err(PhysicalError::BadGain { .. })
+        ));
+        assert_eq!(ResonatorBank::new(&[], rate), Err(PhysicalError::NoModes));
+        assert_eq!(
+            ResonatorBank::new(&[good], SampleRate(0)),
+            Err(PhysicalError::ZeroRate)
+        );
+    }
+}
