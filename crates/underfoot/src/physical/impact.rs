@@ -35,17 +35,18 @@
 //! $$ v_1 = v_0 - \frac{T F}{m}, \qquad y_{h1} = y_{h0} + T \frac{v_0 + v_1}{2}
 //!    = y_{h0} + T v_0 - \frac{T^2 F}{2m}. $$
 //!
-//! The surface takes the impulse `J = F T` ([`ResonatorBank`]: `h\[0\] = 0`), so its next
-//! displacement is `y_{s1} = y_s^{free} + h\[1\] F T`, with `y_s^{free}` its ringing alone.
+//! The surface takes the impulse `J = F T` ([`ResonatorBank`]: `h[0] = 0`), so its next
+//! displacement is `y_{s1} = y_s^{free} + h[1] F T`, with `y_s^{free}` its ringing alone.
 //! The compression at the end of the step is therefore linear in `F`:
 //!
 //! $$ x_1 = x_{pred} - C F, \qquad x_{pred} = x_0 + T v_0 - (y_s^{free} - y_{s0}),
 //!    \qquad C = \frac{T^2}{2m} + T\, h\[1\] > 0, $$
 //!
 //! and `F` depends on `x_1`: one scalar equation per sample in contact, solved by
-//! bracketed regula falsi (Illinois). `F ≥ 0` bounds `x_1 ≤ x_pred`; the force is
-//! non-decreasing in `x_1`, so the root is bracketed and found to rounding in a handful of
-//! iterations. Out of contact (`x_0 ≤ 0` and `x_pred ≤ 0`) the force is zero and nothing
+//! bracketed regula falsi (Illinois). `F ≥ 0` bounds `x_1 ≤ x_pred`; the elastic part is
+//! non-decreasing in `x_1` (`U` is convex), so `x_pred - C F(x_pred)` bounds it below
+//! (widened should the damping part say otherwise), and the root is found to rounding in a
+//! handful of iterations. Out of contact (`x_0 ≤ 0` and `x_pred ≤ 0`) the force is zero and nothing
 //! is solved. The surface never sees the force of the sample it is computed in, so there
 //! is no delay-free loop to break, unlike a bilinear discretisation of the surface.
 //!
@@ -119,7 +120,7 @@ pub struct Impact {
     params: ImpactParams,
     surface: Option<ResonatorBank>,
     period: f64,
-    /// `C = T^2/(2m) + T h\[1\]`: how much one newton over one sample closes the contact.
+    /// `C = T^2/(2m) + T h[1]`: how much one newton over one sample closes the contact.
     compliance: f64,
     /// Whether a hammer has been thrown at all.
     armed: bool,

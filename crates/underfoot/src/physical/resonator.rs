@@ -24,14 +24,14 @@
 //!
 //! so the sampled response passes through the continuous one at every sample: each mode's
 //! frequency and decay are exact at any rate, not warped as a bilinear transform would
-//! warp them. Each sample of input is taken as the impulse `J\[n\]` (N·s) delivered during
+//! warp them. Each sample of input is taken as the impulse `J[n]` (N·s) delivered during
 //! that sample, at its start. One complex one-pole per mode runs it:
 //!
 //! $$ z_k\[n+1\] = p_k \left(z_k\[n\] + J\[n\]\right), \qquad
 //!    y\[n\] = \sum_k g_k \operatorname{Im} z_k\[n\], \qquad
 //!    \dot y\[n\] = \sum_k \operatorname{Im}\left(g_k s_k z_k\[n\]\right). $$
 //!
-//! `h\[0\] = 0`: an impulse moves the surface only from the next sample on, so a contact
+//! `h[0] = 0`: an impulse moves the surface only from the next sample on, so a contact
 //! force computed from the surface's position is never in a delay-free loop with it.
 //! The velocity is the exact derivative of the continuous response between impulses.
 //!
@@ -79,7 +79,7 @@ pub struct ResonatorBank {
     /// `g_k s_k`: the velocity, from the state.
     gain_slope: Vec<Complex64>,
     state: Vec<Complex64>,
-    /// `h\[1\]`: the displacement one sample after a unit impulse.
+    /// `h[1]`: the displacement one sample after a unit impulse.
     first_sample: f64,
 }
 
@@ -161,7 +161,7 @@ impl ResonatorBank {
         self.state.fill(Complex64::new(0.0, 0.0));
     }
 
-    /// The displacement `y\[n\]` now, before this sample's input.
+    /// The displacement `y[n]` now, before this sample's input.
     #[must_use]
     pub fn displacement(&self) -> f64 {
         self.state
@@ -171,7 +171,7 @@ impl ResonatorBank {
             .sum()
     }
 
-    /// The velocity `ẏ\[n\]` now, before this sample's input (metres per second when the
+    /// The velocity `ẏ[n]` now, before this sample's input (metres per second when the
     /// gains are in metres per newton-second).
     #[must_use]
     pub fn velocity(&self) -> f64 {
@@ -182,7 +182,7 @@ impl ResonatorBank {
             .sum()
     }
 
-    /// Returns the displacement `y\[n\]`, then takes the impulse `J\[n\]` (N·s) of this
+    /// Returns the displacement `y[n]`, then takes the impulse `J[n]` (N·s) of this
     /// sample and advances by one sample.
     pub fn tick(&mut self, impulse: f64) -> f64 {
         let mut y = 0.0;
@@ -201,7 +201,7 @@ impl ResonatorBank {
         }
     }
 
-    /// The first `n` samples of the impulse response `h\[n\]`, from rest, leaving this
+    /// The first `n` samples of the impulse response `h[n]`, from rest, leaving this
     /// bank's state untouched.
     #[must_use]
     pub fn impulse_response(&self, n: usize) -> Vec<f64> {
@@ -216,7 +216,7 @@ impl ResonatorBank {
     }
 
     /// The displacement the bank will have at the next sample if this sample's impulse is
-    /// zero: `Σ Im(g_k p_k z_k\[n\])`.
+    /// zero: `Σ Im(g_k p_k z_k[n])`.
     pub(crate) fn free_next_displacement(&self) -> f64 {
         self.state
             .iter()
@@ -225,7 +225,7 @@ impl ResonatorBank {
             .sum()
     }
 
-    /// `h\[1\]`: how much the next displacement moves per unit impulse now.
+    /// `h[1]`: how much the next displacement moves per unit impulse now.
     pub(crate) fn first_sample_gain(&self) -> f64 {
         self.first_sample
     }
@@ -234,7 +234,7 @@ impl ResonatorBank {
     ///
     /// # Errors
     /// [`PhysicalError::Factorisation`] when the numerator cannot be factored: its leading
-    /// coefficient `h\[1\]` is zero (gains that cancel), or the root finder fails.
+    /// coefficient `h[1]` is zero (gains that cancel), or the root finder fails.
     pub fn to_sos(&self) -> Result<Sos, PhysicalError> {
         let denominators: Vec<[f64; 3]> = self
             .pole
