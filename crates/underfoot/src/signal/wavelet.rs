@@ -142,7 +142,7 @@ pub fn dwt(signal: &[f64], wavelet: Wavelet, levels: usize) -> Result<Decomposit
         let off = i - last;
         let period = 2 * last.max(1);
         let m = off % period;
-        approx.push(signal[if m <= last { last - m } else { m - last }]);
+        approx.push(signal[m.abs_diff(last)]);
     }
     let h = wavelet.lowpass();
     let g = wavelet.highpass();
