@@ -31,7 +31,9 @@
 //!
 //! Every fit also records the plain Levi fit at the same order, so that a report can show
 //! what the refinements bought.
+pub mod crumpling;
 pub mod levi;
+pub mod lpc;
 pub mod metrics;
 pub mod refine;
 pub mod roots;

@@ -8,6 +8,7 @@ pub mod resample;
 pub mod savgol;
 pub mod sos;
 pub mod spectrum;
+pub mod wavelet;
 
 pub use sos::{Biquad, Sos};
 
