@@ -276,7 +276,6 @@ impl Output {
                     kind == "null" || !rest.is_empty(),
                     "--output wav:FILE needs a file"
                 );
-                let _ = host;
                 let sink = if kind == "wav" {
                     Some(WavSink::create(
                         rest,

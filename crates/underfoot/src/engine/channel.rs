@@ -17,8 +17,8 @@ pub(super) struct Channel {
     rng: SplitMix64,
     drive: DriveKind,
     polarity: Polarity,
-    inverse_weight: f32,
-    rate_hz: f32,
+    weight: f64,
+    rate_hz: f64,
     sigma: f32,
     /// The voice playing now, and the one fading out after a material change.
     voices: [Voice; 2],
@@ -45,8 +45,8 @@ impl Channel {
             rng: SplitMix64::new(config.seed ^ (index as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)),
             drive: config.drive,
             polarity: config.polarity,
-            inverse_weight: (1.0 / config.nominal_weight.0.max(1e-9)) as f32,
-            rate_hz: rate.hz() as f32,
+            weight: config.nominal_weight.0.max(1e-9),
+            rate_hz: rate.hz(),
             sigma: config.perturbation,
             voices: [Voice::new(), Voice::new()],
             current: 0,
@@ -124,14 +124,13 @@ impl Channel {
         let drive = &mut self.drive_buf[..n];
         for x in drive.iter_mut() {
             let total = self.conditioner.next_total();
-            *x = match self.drive {
-                DriveKind::Impulse => 0.0,
-                DriveKind::Force => total * self.inverse_weight,
-                DriveKind::ForceRate => {
-                    let rate = f64::from((total - self.previous_total) * self.rate_hz);
-                    self.polarity.rectify(rate) as f32 * self.inverse_weight
-                }
-            };
+            *x = self.drive.sample(
+                f64::from(total),
+                f64::from(self.previous_total),
+                self.rate_hz,
+                self.polarity,
+                self.weight,
+            ) as f32;
             self.previous_total = total;
         }
         if let Some(last) = drive.last() {

@@ -594,29 +594,20 @@ impl Engine {
             .zip(self.limiters.iter_mut())
             .enumerate()
         {
-            if c >= device_channels {
-                break;
-            }
             // Render in sub-blocks through a stack buffer: no per-channel output storage.
+            // A channel without a device channel still runs, so its state stays in time.
             let mut start = 0;
             while start < n {
                 let len = (n - start).min(channel_buf.len());
                 let buf = &mut channel_buf[..len];
                 resets += channel.render(buf);
-                for (i, y) in buf.iter().enumerate() {
-                    let v = limiter.tick(y * fade[start + i], &mut report);
-                    self.peak = self.peak.max(v.abs());
-                    out[(start + i) * device_channels + c] = v;
+                if c < device_channels {
+                    for (i, y) in buf.iter().enumerate() {
+                        let v = limiter.tick(y * fade[start + i], &mut report);
+                        self.peak = self.peak.max(v.abs());
+                        out[(start + i) * device_channels + c] = v;
+                    }
                 }
-                start += len;
-            }
-        }
-        // Channels without a device channel still run, so their state stays in time.
-        for channel in self.channels.iter_mut().skip(device_channels) {
-            let mut start = 0;
-            while start < n {
-                let len = (n - start).min(channel_buf.len());
-                resets += channel.render(&mut channel_buf[..len]);
                 start += len;
             }
         }

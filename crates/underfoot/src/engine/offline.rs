@@ -231,11 +231,8 @@ pub fn segment_lsd(
     };
     let measured = measure(&[recording], &config)?;
     let grid: Vec<Hz> = model.fit.grid_hz.iter().map(|f| Hz(*f)).collect();
-    let got = measured.on_grid(&grid);
-    let sum: f64 = got
-        .iter()
-        .zip(&model.fit.measured)
-        .map(|(a, b)| (20.0 * (a / b).log10() - gain.0).powi(2))
-        .sum();
-    Ok((sum / grid.len() as f64).sqrt())
+    // Take the output gain back out, then the same distance the fit is scored with.
+    let ungain = 1.0 / gain.to_amplitude();
+    let got: Vec<f64> = measured.on_grid(&grid).iter().map(|m| m * ungain).collect();
+    Ok(crate::fit::metrics::lsd_db(&model.fit.measured, &got))
 }

@@ -454,11 +454,10 @@ mod tests {
         (310.0, 0.015, 0.5, -0.4),
     ];
 
-    /// The three modes at `rate` for `len` seconds, plus white noise at -60 dB of the peak.
-    fn decay(rate: SampleRate, len: f64, seed: u64) -> Vec<f64> {
+    /// The three modes at `rate`, `n` samples, without noise.
+    fn clean_decay(rate: SampleRate, n: usize) -> Vec<f64> {
         let fs = rate.hz();
-        let n = (len * fs) as usize;
-        let mut clean: Vec<f64> = (0..n)
+        (0..n)
             .map(|i| {
                 let t = i as f64 / fs;
                 MODES
@@ -468,7 +467,12 @@ mod tests {
                     })
                     .sum()
             })
-            .collect();
+            .collect()
+    }
+
+    /// The three modes at `rate` for `len` seconds, plus white noise at -60 dB of the peak.
+    fn decay(rate: SampleRate, len: f64, seed: u64) -> Vec<f64> {
+        let mut clean = clean_decay(rate, (len * rate.hz()) as usize);
         let peak = clean.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         let mut rng = SplitMix64::new(seed);
         for v in &mut clean {
@@ -513,18 +517,7 @@ mod tests {
     #[test]
     fn amplitudes_of_a_clean_decay_are_exact() {
         let rate = SampleRate(2000);
-        let fs = rate.hz();
-        let x: Vec<f64> = (0..600)
-            .map(|i| {
-                let t = i as f64 / fs;
-                MODES
-                    .iter()
-                    .map(|&(f, tau, a, ph)| {
-                        a * (-t / tau).exp() * (std::f64::consts::TAU * f * t + ph).cos()
-                    })
-                    .sum()
-            })
-            .collect();
+        let x = clean_decay(rate, 600);
         let modes = modes_from_lpc(&x, rate, 6, None).unwrap();
         assert_eq!(modes.len(), 3);
         for (m, &(f, tau, a, _)) in modes.iter().zip(&MODES) {

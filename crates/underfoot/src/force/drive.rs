@@ -56,6 +56,27 @@ impl DriveKind {
         }
     }
 
+    /// One sample of a continuous drive from the total force now and one sample ago (at
+    /// `rate_hz`), normalised by `weight` newtons; 0 for [`DriveKind::Impulse`], whose
+    /// impulses come from the step detector. The engine and [`offline`](Self::offline)
+    /// share it, so the calibration sees exactly the drive the engine plays.
+    #[inline]
+    #[must_use]
+    pub fn sample(
+        self,
+        total: f64,
+        previous: f64,
+        rate_hz: f64,
+        polarity: Polarity,
+        weight: f64,
+    ) -> f64 {
+        match self {
+            DriveKind::Impulse => 0.0,
+            DriveKind::Force => total / weight,
+            DriveKind::ForceRate => polarity.rectify((total - previous) * rate_hz) / weight,
+        }
+    }
+
     /// The drive for a whole force signal (newtons at `rate`), as the engine would make it
     /// sample by sample with [`Polarity::Loading`]. `Impulse` gives a unit impulse at the
     /// first sample.
@@ -68,15 +89,14 @@ impl DriveKind {
                 x[0] = 1.0;
                 x
             }
-            DriveKind::Force => force.iter().map(|f| (f / w) as f32).collect(),
-            DriveKind::ForceRate => {
-                let mut prev = force.first().copied().unwrap_or(0.0);
+            DriveKind::Force | DriveKind::ForceRate => {
+                let mut previous = force.first().copied().unwrap_or(0.0);
                 force
                     .iter()
                     .map(|&f| {
-                        let v = Polarity::Loading.rectify((f - prev) * rate.hz());
-                        prev = f;
-                        (v / w) as f32
+                        let x = self.sample(f, previous, rate.hz(), Polarity::Loading, w);
+                        previous = f;
+                        x as f32
                     })
                     .collect()
             }

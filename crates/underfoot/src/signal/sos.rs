@@ -141,6 +141,17 @@ pub fn quadratic_roots(c1: f64, c2: f64) -> [Complex64; 2] {
     }
 }
 
+/// The degree in `z^-1` of a section's numerator or denominator `[c0, c1, c2]`.
+pub(crate) fn degree(c: &[f64; 3]) -> usize {
+    if c[2] != 0.0 {
+        2
+    } else if c[1] != 0.0 {
+        1
+    } else {
+        0
+    }
+}
+
 /// A cascade of second-order sections with an overall gain folded into the first section.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct Sos {
@@ -158,17 +169,8 @@ impl Sos {
     /// The order: the larger of the expanded numerator's and denominator's degrees.
     #[must_use]
     pub fn order(&self) -> usize {
-        let deg = |c: &[f64; 3]| {
-            if c[2] != 0.0 {
-                2
-            } else if c[1] != 0.0 {
-                1
-            } else {
-                0
-            }
-        };
-        let nb: usize = self.sections.iter().map(|s| deg(&s.b)).sum();
-        let na: usize = self.sections.iter().map(|s| deg(&s.a)).sum();
+        let nb: usize = self.sections.iter().map(|s| degree(&s.b)).sum();
+        let na: usize = self.sections.iter().map(|s| degree(&s.a)).sum();
         nb.max(na)
     }
 

@@ -45,6 +45,7 @@ use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 
 use crate::signal::Sos;
+use crate::signal::sos::degree;
 use crate::units::{Band, Hz, SampleRate, Seconds};
 
 /// One mode: a pole and its residue.
@@ -123,15 +124,6 @@ impl ModalFilter {
     /// An unstable filter, repeated poles, or a numerator of higher degree than the
     /// denominator.
     pub fn from_sos(sos: &Sos, rate: SampleRate) -> Result<Self, ModalError> {
-        let degree = |c: &[f64; 3]| {
-            if c[2] != 0.0 {
-                2
-            } else if c[1] != 0.0 {
-                1
-            } else {
-                0
-            }
-        };
         let mut poles = Vec::new();
         let mut numerator_degree = 0;
         for s in &sos.sections {
@@ -195,17 +187,10 @@ impl ModalFilter {
         // The direct term is the limit of H as w -> infinity: the ratio of the leading
         // coefficients, zero when the numerator has lower degree.
         let direct = if numerator_degree == poles.len() {
+            // The coefficient of the highest power (`a0 = 1` for a constant denominator).
             let lead = |c: &[f64; 3]| c[degree(c)];
-            let b: f64 = sos
-                .sections
-                .iter()
-                .map(|s| if degree(&s.b) > 0 { lead(&s.b) } else { s.b[0] })
-                .product();
-            let a: f64 = sos
-                .sections
-                .iter()
-                .map(|s| if degree(&s.a) > 0 { lead(&s.a) } else { 1.0 })
-                .product();
+            let b: f64 = sos.sections.iter().map(|s| lead(&s.b)).product();
+            let a: f64 = sos.sections.iter().map(|s| lead(&s.a)).product();
             b / a
         } else {
             0.0

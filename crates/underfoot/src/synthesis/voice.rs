@@ -308,17 +308,13 @@ impl PreparedMaterial {
         let rate = self.modal.rate;
         let tail = rate.samples_in(Seconds(1.0));
         let energy_of = |prepared: &Self, input: &[f32]| {
-            let mut voice = Voice::new();
-            voice.load(prepared, DriveKind::Impulse);
-            let mut x = input.to_vec();
-            x.resize(input.len() + tail, 0.0);
-            let mut y = vec![0.0; x.len()];
-            voice.process(&x, &mut y);
-            y.iter().map(|v| f64::from(*v).powi(2)).sum::<f64>()
+            prepared
+                .render(input, tail)
+                .iter()
+                .map(|v| f64::from(*v).powi(2))
+                .sum::<f64>()
         };
-        let mut impulse = vec![0.0; 1];
-        impulse[0] = 1.0;
-        let reference = energy_of(self, &impulse);
+        let reference = energy_of(self, &[1.0]);
         for kind in [DriveKind::Force, DriveKind::ForceRate] {
             let drive = kind.offline(nominal_step, rate, weight);
             let e = energy_of(self, &drive);
@@ -334,13 +330,22 @@ impl PreparedMaterial {
     /// its response): what a nominal step peaks at before the output gain.
     #[must_use]
     pub fn impulse_peak(&self) -> f32 {
+        let tail = self.modal.rate.samples_in(Seconds(1.0)).max(1) - 1;
+        self.render(&[1.0], tail)
+            .iter()
+            .fold(0.0, |m, v| m.max(v.abs()))
+    }
+
+    /// A fresh voice of this material under the impulse drive's gain, run on `input`
+    /// followed by `tail` samples of silence. For set-up, not for the audio thread.
+    fn render(&self, input: &[f32], tail: usize) -> Vec<f32> {
         let mut voice = Voice::new();
         voice.load(self, DriveKind::Impulse);
-        let mut x = vec![0.0f32; self.modal.rate.samples_in(Seconds(1.0)).max(1)];
-        x[0] = 1.0;
-        let mut y = vec![0.0f32; x.len()];
+        let mut x = input.to_vec();
+        x.resize(input.len() + tail, 0.0);
+        let mut y = vec![0.0; x.len()];
         voice.process(&x, &mut y);
-        y.iter().fold(0.0, |m, v| m.max(v.abs()))
+        y
     }
 
     /// The response of the voice (modes and post filter) at `omega` radians per sample.
