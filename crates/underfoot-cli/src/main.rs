@@ -29,6 +29,8 @@ enum Command {
     /// Inspect and edit library files (or the built-in library).
     #[command(subcommand)]
     Library(commands::library::LibraryCommand),
+    /// Table I: how close the IIR filter and the calibrated physical model come to recordings.
+    Compare(commands::compare::CompareArgs),
     /// Render force (a CSV track or a generated walk) to a WAV file of vibration.
     Render(commands::render::RenderArgs),
     /// Run the live engine: force from a replay, serial port or OSC, to a device.
@@ -42,6 +44,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Fit(args) => commands::fit::run(&args),
         Command::Library(cmd) => commands::library::run(&cmd),
+        Command::Compare(args) => commands::compare::run(&args),
         Command::Render(args) => commands::render::run(&args),
         Command::Run(args) => commands::run::run(&args),
         Command::Demo(args) => commands::demo::run(&args),

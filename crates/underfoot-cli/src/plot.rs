@@ -32,6 +32,8 @@ use underfoot::signal::spectrum::SpectrumPlan;
 pub struct Panel<'a> {
     pub title: String,
     pub fit: &'a FitRecord,
+    /// A second model on the same grid (the physical model of `compare`), drawn in blue.
+    pub physical: Option<&'a [f64]>,
 }
 
 /// The image formats a plot can be written in.
@@ -209,6 +211,7 @@ fn draw_panel<DB: DrawingBackend>(
         .measured
         .iter()
         .chain(&fit.model)
+        .chain(panel.physical.unwrap_or_default())
         .map(|&m| db(m))
         .filter(|v| v.is_finite());
     let top = all_db.clone().fold(f64::NEG_INFINITY, f64::max);
@@ -234,17 +237,25 @@ fn draw_panel<DB: DrawingBackend>(
     let row_y = (TITLE_HEIGHT / 2) as i32;
     let measured_style = BLACK.stroke_width(2);
     let model_style = RED.stroke_width(2);
+    let physical_style = BLUE.stroke_width(2);
     if show_text {
         area.draw(&Text::new(
             panel.title.clone(),
             (12, row_y),
             text(17.0).pos(Pos::new(HPos::Left, VPos::Center)),
         ))?;
-        for (i, (label, style)) in [("measured", measured_style), ("model", model_style)]
-            .into_iter()
-            .enumerate()
-        {
-            let x = w as i32 - 210 + 105 * i as i32;
+        let legend: &[(&str, ShapeStyle)] = if panel.physical.is_some() {
+            &[
+                ("measured", measured_style),
+                ("IIR", model_style),
+                ("physical", physical_style),
+            ]
+        } else {
+            &[("measured", measured_style), ("model", model_style)]
+        };
+        let first = w as i32 - 105 * legend.len() as i32;
+        for (i, &(label, style)) in legend.iter().enumerate() {
+            let x = first + 105 * i as i32;
             area.draw(&PathElement::new(vec![(x, row_y), (x + 24, row_y)], style))?;
             area.draw(&Text::new(
                 label,
@@ -276,6 +287,9 @@ fn draw_panel<DB: DrawingBackend>(
         .draw()?;
     chart.draw_series(LineSeries::new(series(&fit.measured), measured_style))?;
     chart.draw_series(LineSeries::new(series(&fit.model), model_style))?;
+    if let Some(physical) = panel.physical {
+        chart.draw_series(LineSeries::new(series(physical), physical_style))?;
+    }
     Ok(())
 }
 
@@ -835,10 +849,12 @@ mod tests {
             Panel {
                 title: "gravel".into(),
                 fit: &fit,
+                physical: None,
             },
             Panel {
                 title: "snow".into(),
                 fit: &fit,
+                physical: None,
             },
         ];
         // No font was registered under this family by this path: SVG must not need one.
@@ -865,6 +881,7 @@ mod tests {
             &[Panel {
                 title: "x".into(),
                 fit: &fit,
+                physical: None,
             }],
             false,
         )
@@ -883,6 +900,7 @@ mod tests {
             &[Panel {
                 title: "x".into(),
                 fit: &fit,
+                physical: None,
             }],
         )
         .expect("png");
@@ -906,6 +924,7 @@ mod tests {
             &[Panel {
                 title: "m".into(),
                 fit: &fit,
+                physical: None,
             }],
             true,
         )

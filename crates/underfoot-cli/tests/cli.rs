@@ -42,6 +42,7 @@ fn model(name: &str, strikes: usize) -> MaterialModel {
             file: format!("{name}.wav"),
             sha256: "0f".repeat(32),
         }],
+        physical: None,
     }
 }
 

@@ -358,6 +358,7 @@ fn the_limiter_holds_against_a_pathological_filter() {
             fit_seconds: 0.0,
         },
         sources: vec![],
+        physical: None,
     };
     let prepared = PreparedMaterial::prepare(&model, RATE, &VoiceConfig::default()).unwrap();
     assert_eq!(prepared.limited_modes, 1, "its decay is limited");

@@ -216,6 +216,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         .map(|m| Panel {
             title: format!("{}: order {}, LSD {:.2} dB", m.name, m.order, m.fit.lsd_db),
             fit: &m.fit,
+            physical: None,
         })
         .collect();
     // SVG never omits text (see the plot module), so there is nothing to warn about.

@@ -282,6 +282,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
             &[Panel {
                 title,
                 fit: &model.fit,
+                physical: None,
             }],
         )
         .with_context(saved)?;

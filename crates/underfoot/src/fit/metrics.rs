@@ -23,6 +23,9 @@ use serde::{Deserialize, Serialize};
 use crate::signal::Sos;
 use crate::units::{Hz, SampleRate};
 
+/// Frequencies of the metric grid (log-spaced over the band) that models are scored on.
+pub const METRIC_POINTS: usize = 96;
+
 /// Both fit metrics of one model.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Metrics {

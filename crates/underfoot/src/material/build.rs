@@ -11,18 +11,31 @@ use crate::analysis::{AnalysisConfig, AnalysisError, MeasuredResponse, measure};
 use crate::fit::{FitConfig, FitError, MetricGrid, Metrics, Target, fit};
 use crate::material::library::validate_name;
 use crate::material::{FilterCoefficients, FitRecord, MaterialModel, SourceFile};
+use crate::physical::{CalibrationConfig, GroundKind, calibrate};
 use crate::recording::Recording;
 
-/// Frequencies of the metric grid stored in a model.
-pub const METRIC_POINTS: usize = 96;
+pub use crate::fit::metrics::METRIC_POINTS;
 
 /// Everything that shapes a material fit.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct BuildConfig {
     /// From recordings to a measured response.
     pub analysis: AnalysisConfig,
     /// From the measured response to a filter.
     pub fit: FitConfig,
+    /// The physical model's calibration from the same recordings (its `analysis` is
+    /// replaced by the one above); `None` to skip it.
+    pub physical: Option<CalibrationConfig>,
+}
+
+impl Default for BuildConfig {
+    fn default() -> Self {
+        Self {
+            analysis: AnalysisConfig::default(),
+            fit: FitConfig::default(),
+            physical: Some(CalibrationConfig::default()),
+        }
+    }
 }
 
 /// Progress of a build, for progress bars.
@@ -44,6 +57,18 @@ pub enum Progress {
         lsd_db: f64,
         /// Its NRMSE.
         nrmse: f64,
+    },
+    /// The physical model is calibrated.
+    Physical {
+        /// Solid or aggregate.
+        kind: GroundKind,
+        /// Its log-spectral distance in dB.
+        lsd_db: f64,
+    },
+    /// The physical model could not be calibrated; the material has only its filter.
+    PhysicalFailed {
+        /// Why.
+        reason: String,
     },
 }
 
@@ -156,7 +181,27 @@ pub fn build_material_with_report(
                 sha256: r.sha256.clone(),
             })
             .collect(),
+        physical: None,
     };
+    let mut model = model;
+    if let Some(cal) = &cfg.physical {
+        let cal = CalibrationConfig {
+            analysis: a.clone(),
+            ..cal.clone()
+        };
+        match calibrate(recordings, &cal) {
+            Ok(p) => {
+                progress(&Progress::Physical {
+                    kind: p.kind,
+                    lsd_db: p.record.lsd_db,
+                });
+                model.physical = Some(p);
+            }
+            Err(e) => progress(&Progress::PhysicalFailed {
+                reason: e.to_string(),
+            }),
+        }
+    }
     Ok((
         model,
         BuildReport {

@@ -642,6 +642,7 @@ mod tests {
                 file: "a.wav".to_string(),
                 sha256: "ab".repeat(32),
             }],
+            physical: None,
         }
     }
 

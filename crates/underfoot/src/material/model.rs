@@ -22,6 +22,10 @@ pub struct MaterialModel {
     pub fit: FitRecord,
     /// The recordings it was fitted from.
     pub sources: Vec<SourceFile>,
+    /// The physical model calibrated from the same recordings, when there is one
+    /// (`--model physical`). Files written before it existed simply lack it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub physical: Option<crate::physical::PhysicalModel>,
 }
 
 /// A filter both as second-order sections (what runs) and expanded (for interchange).

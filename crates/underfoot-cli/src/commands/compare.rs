@@ -1,0 +1,226 @@
+//! `underfoot compare`: the IIR paper's Table I for any set of materials and recordings.
+//!
+//! Each `NAME=FOLDER` is fitted twice from the recordings in the folder: the IIR filter
+//! (`underfoot fit`) and the physical model, calibrated with no hand tuning
+//! ([`underfoot::physical::calibrate`]). Both are scored against the measured response
+//! on the fit's grid of 96 log-spaced frequencies: the IIR filter by its magnitude, the
+//! physical model by rendering four nominal steps with a seed other than the
+//! calibration's and analysing the render exactly as the recordings were. The table goes
+//! to stdout; `--json` writes
+//!
+//! ```json
+//! { "materials": [ { "name": "gravel",
+//!                    "iir": { "nrmse": 0.05, "lsd_db": 0.4, "order": 16 },
+//!                    "physical": { "nrmse": 0.6, "lsd_db": 1.6, "kind": "aggregate", "modes": 32 } } ] }
+//! ```
+//!
+//! and `--plot DIR` draws `DIR/NAME.svg` (or `.png` with `--plot-format png`): measured,
+//! IIR and physical spectra in one panel, the paper's Fig. 4.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+use clap::Args;
+use serde::Serialize;
+use underfoot::fit::metrics::{lsd_db, nrmse};
+use underfoot::material::build::{BuildConfig, build_material};
+use underfoot::material::library::{validate_name, write_atomic};
+use underfoot::physical::calibrate::analyse_render;
+use underfoot::recording;
+use underfoot::units::Hz;
+
+use crate::output::emit;
+use crate::plot::{self, Omitted, Panel};
+
+/// Arguments of `underfoot compare`.
+#[derive(Debug, Args)]
+pub struct CompareArgs {
+    /// Also write the table as JSON here.
+    #[arg(long, value_name = "FILE.json")]
+    json: Option<PathBuf>,
+    /// Draw one spectrum plot per material into this directory (created if missing).
+    #[arg(long, value_name = "DIR")]
+    plot: Option<PathBuf>,
+    /// Image format of the plots.
+    #[arg(long, value_name = "svg|png", default_value = "svg", value_parser = ["svg", "png"])]
+    plot_format: String,
+    /// Materials and their recordings, e.g. `gravel=recordings/gravel`.
+    #[arg(required = true, value_name = "NAME=FOLDER", value_parser = parse_pair)]
+    materials: Vec<(String, PathBuf)>,
+}
+
+fn parse_pair(s: &str) -> Result<(String, PathBuf), String> {
+    let (name, folder) = s
+        .split_once('=')
+        .ok_or_else(|| format!("{s:?}: expected NAME=FOLDER, e.g. gravel=recordings/gravel"))?;
+    validate_name(name).map_err(|e| format!("{s:?}: {e}"))?;
+    if folder.is_empty() {
+        return Err(format!("{s:?}: the folder is empty"));
+    }
+    Ok((name.to_string(), PathBuf::from(folder)))
+}
+
+/// One material's row.
+#[derive(Debug, Serialize)]
+struct Row {
+    name: String,
+    iir: IirScore,
+    physical: PhysicalScore,
+}
+
+#[derive(Debug, Serialize)]
+struct IirScore {
+    nrmse: f64,
+    lsd_db: f64,
+    order: usize,
+}
+
+#[derive(Debug, Serialize)]
+struct PhysicalScore {
+    nrmse: f64,
+    lsd_db: f64,
+    kind: &'static str,
+    modes: usize,
+}
+
+#[derive(Debug, Serialize)]
+struct Table {
+    materials: Vec<Row>,
+}
+
+/// The audio files of a folder, sorted by name.
+fn recordings_in(folder: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let entries = std::fs::read_dir(folder)
+        .with_context(|| format!("reading folder {}", folder.display()))?;
+    let mut files = Vec::new();
+    for entry in entries {
+        let path = entry
+            .with_context(|| format!("reading folder {}", folder.display()))?
+            .path();
+        let audio = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| {
+                ["wav", "flac", "ogg", "oga"]
+                    .iter()
+                    .any(|x| e.eq_ignore_ascii_case(x))
+            });
+        if audio && path.is_file() {
+            files.push(path);
+        }
+    }
+    files.sort();
+    if files.is_empty() {
+        bail!(
+            "{} holds no recording (.wav, .flac, .ogg)",
+            folder.display()
+        );
+    }
+    Ok(files)
+}
+
+/// Runs `underfoot compare`.
+pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
+    if let Some(json) = &args.json {
+        let dir = json.parent().filter(|d| !d.as_os_str().is_empty());
+        if let Some(d) = dir.filter(|d| !d.is_dir()) {
+            bail!("--json {}: directory {} does not exist", json.display(), d.display());
+        }
+    }
+    if let Some(dir) = &args.plot {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("creating plot directory {}", dir.display()))?;
+    }
+    let cfg = BuildConfig::default();
+    let cal = cfg.physical.clone().unwrap_or_default();
+    let mut rows = Vec::new();
+    emit(&format!(
+        "{:<12} {:>10} {:>9} {:>6} | {:>10} {:>9} {:>9} {:>5}\n",
+        "material", "IIR NRMSE", "LSD dB", "order", "phys NRMSE", "LSD dB", "kind", "modes"
+    ))?;
+    for (name, folder) in &args.materials {
+        let files = recordings_in(folder)?;
+        let recordings = files
+            .iter()
+            .map(|f| recording::read(f, None))
+            .collect::<Result<Vec<_>, _>>()?;
+        let model = build_material(name, &recordings, &cfg, &mut |_| {})
+            .with_context(|| format!("fitting {name} from {}", folder.display()))?;
+        let Some(physical) = &model.physical else {
+            bail!("{name}: the physical model could not be calibrated from {}", folder.display());
+        };
+        // Score on a render the calibration has not seen.
+        let grid: Vec<Hz> = model.fit.grid_hz.iter().map(|f| Hz(*f)).collect();
+        let curve = analyse_render(physical, &cal, &grid, cal.seed ^ 0xC0FFEE)
+            .with_context(|| format!("rendering the physical model of {name}"))?;
+        let row = Row {
+            name: name.clone(),
+            iir: IirScore {
+                nrmse: model.fit.nrmse,
+                lsd_db: model.fit.lsd_db,
+                order: model.order,
+            },
+            physical: PhysicalScore {
+                nrmse: nrmse(&model.fit.measured, &curve),
+                lsd_db: lsd_db(&model.fit.measured, &curve),
+                kind: physical.kind.name(),
+                modes: physical.modes.len(),
+            },
+        };
+        emit(&format!(
+            "{:<12} {:>10.4} {:>9.2} {:>6} | {:>10.4} {:>9.2} {:>9} {:>5}\n",
+            row.name,
+            row.iir.nrmse,
+            row.iir.lsd_db,
+            row.iir.order,
+            row.physical.nrmse,
+            row.physical.lsd_db,
+            row.physical.kind,
+            row.physical.modes
+        ))?;
+        if let Some(dir) = &args.plot {
+            let path = dir.join(format!("{name}.{}", args.plot_format));
+            let title = format!(
+                "{name}: IIR LSD {:.2} dB, physical LSD {:.2} dB",
+                row.iir.lsd_db, row.physical.lsd_db
+            );
+            let omitted = plot::draw_spectra(
+                &path,
+                &[Panel {
+                    title,
+                    fit: &model.fit,
+                    physical: Some(&curve),
+                }],
+            )?;
+            if omitted == Omitted::Text {
+                eprintln!(
+                    "underfoot: warning: no font found, {} has no text (set UNDERFOOT_FONT to a .ttf file, or use --plot-format svg)",
+                    path.display()
+                );
+            }
+        }
+        rows.push(row);
+    }
+    if let Some(path) = &args.json {
+        let mut json = serde_json::to_string_pretty(&Table { materials: rows })?;
+        json.push('\n');
+        write_atomic(path, json.as_bytes())?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pairs_parse_and_bad_ones_are_refused() {
+        assert_eq!(
+            parse_pair("gravel=rec/gravel"),
+            Ok(("gravel".to_string(), PathBuf::from("rec/gravel")))
+        );
+        assert!(parse_pair("gravel").is_err());
+        assert!(parse_pair("gravel=").is_err());
+        assert!(parse_pair("bad name=x").is_err());
+    }
+}

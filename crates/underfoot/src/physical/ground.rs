@@ -1,0 +1,177 @@
+//! A calibrated physical model, running: force in, vibration out.
+//!
+//! [`Ground`] is what the engine plays for `--model physical`, and what the calibration
+//! renders, so the two hear the same thing. Its input is the loading rate
+//! `v_F = max(dF/dt, 0)` in newtons per second, sample by sample:
+//!
+//! - an **aggregate** turns it into the event rate `N(t) = α v_F(t)` of its micro-impacts
+//!   ([`super::aggregate`]), so it sounds while, and as much as, the foot loads the ground;
+//! - a **solid** ignores it and strikes once per heel strike ([`Ground::strike`]), with a
+//!   speed proportional to the strike's intensity (its loading rate over the nominal one).
+//!
+//! A step announced without force (an OSC step, say: [`Ground::step`]) strikes a solid
+//! and plays a nominal step's loading through an aggregate, scaled by the intensity.
+//! Output is surface velocity times the calibrated output gain: a nominal step comes out
+//! at the recorded level.
+//!
+//! Prepared by [`Ground::new`]; [`Ground::assign_from`] loads another prepared model into
+//! an existing one without allocating (capacity for [`MAX_MODES`] modes and
+//! [`MAX_VOICES`] voices is reserved up front), so a material can change on the audio
+//! thread. Nothing after preparation allocates or panics.
+
+use super::aggregate::Aggregate;
+use super::calibrate::aggregate_params;
+use super::model::{GroundKind, MAX_MODES, MAX_VOICES, PhysicalModel};
+use super::PhysicalError;
+use crate::force::gait::nominal_step;
+use crate::units::SampleRate;
+
+/// A physical model prepared for a rate; see the module documentation.
+#[derive(Debug, Clone)]
+pub struct Ground {
+    kind: GroundKind,
+    aggregate: Aggregate,
+    events_per_newton: f32,
+    gain: f32,
+    /// Scratch for the event rate of one block.
+    rates: Vec<f32>,
+    /// A nominal step's event rate, for steps announced without force.
+    nominal: Vec<f32>,
+    cursor: usize,
+    burst: f32,
+}
+
+impl Ground {
+    /// Prepares `model` at `rate`, for blocks of up to `max_block` samples (longer ones are
+    /// processed in pieces).
+    ///
+    /// # Errors
+    /// The model is invalid or does not fit the rate.
+    pub fn new(
+        model: &PhysicalModel,
+        rate: SampleRate,
+        seed: u64,
+        max_block: usize,
+    ) -> Result<Self, PhysicalError> {
+        model.validate()?;
+        let aggregate = Aggregate::with_capacity(
+            &model.modes,
+            &aggregate_params(model),
+            rate,
+            seed,
+            MAX_MODES,
+            MAX_VOICES,
+        )?;
+        let fs = rate.hz();
+        let nominal = match model.kind {
+            GroundKind::Aggregate => {
+                let step = nominal_step(70.0, 1.8, fs);
+                std::iter::once(0.0)
+                    .chain(step.windows(2).map(|w| {
+                        (model.events_per_newton * ((w[1] - w[0]) * fs).max(0.0)) as f32
+                    }))
+                    .collect()
+            }
+            GroundKind::Solid => Vec::new(),
+        };
+        let nominal_cap = nominal_step(70.0, 1.8, fs).len().max(1);
+        let mut nominal_buf = Vec::with_capacity(nominal_cap.max(nominal.len()));
+        nominal_buf.extend_from_slice(&nominal);
+        Ok(Self {
+            kind: model.kind,
+            aggregate,
+            events_per_newton: model.events_per_newton as f32,
+            gain: model.output_gain as f32,
+            rates: vec![0.0; max_block.max(1)],
+            nominal: nominal_buf,
+            cursor: usize::MAX,
+            burst: 0.0,
+        })
+    }
+
+    /// Loads `other`'s model into this one, keeping this one's scratch, random stream and
+    /// silence. Never allocates when `other` was prepared at the same rate (capacity is
+    /// reserved by [`new`](Self::new)).
+    pub fn assign_from(&mut self, other: &Ground) {
+        self.kind = other.kind;
+        self.aggregate.assign_from(&other.aggregate);
+        self.events_per_newton = other.events_per_newton;
+        self.gain = other.gain;
+        self.nominal.clear();
+        let room = self.nominal.capacity().min(other.nominal.len());
+        self.nominal.extend_from_slice(&other.nominal[..room]);
+        self.cursor = usize::MAX;
+        self.burst = 0.0;
+    }
+
+    /// One aggregate or one impact per step.
+    #[must_use]
+    pub fn kind(&self) -> GroundKind {
+        self.kind
+    }
+
+    /// Micro-impacts (or strikes) so far.
+    #[must_use]
+    pub fn events(&self) -> u64 {
+        self.aggregate.events()
+    }
+
+    /// A heel strike found in the force: a solid strikes, at a speed scaled by
+    /// `intensity`; an aggregate is already driven by the force and ignores it.
+    pub fn strike(&mut self, intensity: f32) {
+        if self.kind == GroundKind::Solid && intensity.is_finite() && intensity > 0.0 {
+            self.aggregate.strike(f64::from(intensity));
+        }
+    }
+
+    /// A step with no force to follow: a solid strikes; an aggregate plays a nominal
+    /// step's loading, scaled by `intensity`.
+    pub fn step(&mut self, intensity: f32) {
+        if !(intensity.is_finite() && intensity > 0.0) {
+            return;
+        }
+        match self.kind {
+            GroundKind::Solid => self.aggregate.strike(f64::from(intensity)),
+            GroundKind::Aggregate => {
+                self.cursor = 0;
+                self.burst = intensity;
+            }
+        }
+    }
+
+    /// Silences the surface.
+    pub fn reset(&mut self) {
+        self.aggregate.reset();
+        self.cursor = usize::MAX;
+    }
+
+    /// Renders `out.len()` samples (at most `loading.len()`), `loading` being `v_F` in N/s.
+    pub fn process(&mut self, loading: &[f32], out: &mut [f32]) {
+        let n = out.len().min(loading.len());
+        let block = self.rates.len();
+        let mut at = 0;
+        while at < n {
+            let len = block.min(n - at);
+            let rates = &mut self.rates[..len];
+            match self.kind {
+                GroundKind::Aggregate => {
+                    for (r, v) in rates.iter_mut().zip(&loading[at..at + len]) {
+                        let mut x = self.events_per_newton * v.max(0.0);
+                        if let Some(b) = self.nominal.get(self.cursor) {
+                            x += self.burst * b;
+                            self.cursor += 1;
+                        }
+                        *r = if x.is_finite() { x } else { 0.0 };
+                    }
+                }
+                GroundKind::Solid => rates.fill(0.0),
+            }
+            let o = &mut out[at..at + len];
+            self.aggregate.process(rates, o);
+            for y in o.iter_mut() {
+                *y *= self.gain;
+            }
+            at += len;
+        }
+    }
+}

@@ -1,0 +1,159 @@
+//! A calibrated physical model of a ground material, as stored in a library file.
+
+use serde::{Deserialize, Serialize};
+
+use super::{ImpactParams, Mode, PhysicalError};
+
+/// The most modes a stored model may have.
+pub const MAX_MODES: usize = 32;
+
+/// The most micro-impacts a stored aggregate may ring at once.
+pub const MAX_VOICES: usize = 8;
+
+/// How the ground answers a step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum GroundKind {
+    /// One impact per step: concrete, wood, metal.
+    Solid,
+    /// Many micro-impacts while the foot loads the ground: gravel, sand, snow.
+    Aggregate,
+}
+
+impl GroundKind {
+    /// Its name in files and reports.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            GroundKind::Solid => "solid",
+            GroundKind::Aggregate => "aggregate",
+        }
+    }
+}
+
+/// A physical model calibrated from recordings ([`super::calibrate`]): the surface's
+/// modes, the hammer that strikes it, and how force drives the strikes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PhysicalModel {
+    /// One impact per step, or a stream of micro-impacts.
+    pub kind: GroundKind,
+    /// The surface at the point struck (frequencies in Hz, decay times in s, gains in
+    /// m/(N·s)).
+    pub modes: Vec<Mode>,
+    /// The hammer; its `velocity` is the RMS speed of a strike (m/s).
+    pub hammer: ImpactParams,
+    /// Fragment sizes are log-uniform in `[1/(1+s), 1+s]` (aggregates).
+    pub size_spread: f64,
+    /// How many micro-impacts can ring at once (aggregates).
+    pub voices: usize,
+    /// The control mapping `N(t) = α v_F(t)`: events per newton of loading (aggregates).
+    pub events_per_newton: f64,
+    /// Output units per m/s of surface velocity: the recorded level.
+    pub output_gain: f64,
+    /// How the calibration went.
+    pub record: PhysicalRecord,
+}
+
+/// What the calibration measured and how well the model matches.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PhysicalRecord {
+    /// Impact onsets per strike, counted in the wavelet detail band.
+    pub onsets_per_strike: f64,
+    /// Median time from a strike's onset to half its energy, in ms (what decides the
+    /// kind when it is automatic).
+    pub half_energy_ms: f64,
+    /// The scale `a` of the event-rate profile `N(t) = e^{a I(t)} - 1`.
+    pub rate_scale: f64,
+    /// Recordings the poles came from: isolated micro-impacts (`true`) or whole strikes.
+    pub isolated_impacts: bool,
+    /// The model's magnitude on the material's fit grid, rendered and analysed as a
+    /// recording is.
+    pub model: Vec<f64>,
+    /// NRMSE of `model` against the measurement.
+    pub nrmse: f64,
+    /// Log-spectral distance of `model` against the measurement, in dB.
+    pub lsd_db: f64,
+}
+
+impl PhysicalModel {
+    /// Checks everything a file could get wrong.
+    ///
+    /// # Errors
+    /// [`PhysicalError`] naming the first bad value.
+    pub fn validate(&self) -> Result<(), PhysicalError> {
+        if self.modes.is_empty() {
+            return Err(PhysicalError::NoModes);
+        }
+        let invalid = |name, value: f64, expected| PhysicalError::InvalidParameter {
+            name,
+            value,
+            expected,
+        };
+        if self.modes.len() > MAX_MODES {
+            return Err(invalid(
+                "modes",
+                self.modes.len() as f64,
+                "at most 32 modes",
+            ));
+        }
+        for (index, m) in self.modes.iter().enumerate() {
+            if !(m.frequency.0.is_finite() && m.frequency.0 > 0.0) {
+                return Err(invalid(
+                    "mode frequency",
+                    m.frequency.0,
+                    "positive and finite (Hz)",
+                ));
+            }
+            if !(m.decay.0.is_finite() && m.decay.0 > 0.0) {
+                return Err(PhysicalError::BadDecay {
+                    index,
+                    decay: m.decay,
+                });
+            }
+            if !m.gain.is_finite() {
+                return Err(PhysicalError::BadGain {
+                    index,
+                    gain: m.gain,
+                });
+            }
+        }
+        let h = &self.hammer;
+        let positive = |v: f64| v.is_finite() && v > 0.0;
+        if !positive(h.mass) {
+            return Err(invalid("hammer mass", h.mass, "positive (kg)"));
+        }
+        if !positive(h.stiffness) {
+            return Err(invalid("hammer stiffness", h.stiffness, "positive"));
+        }
+        if !(h.alpha.is_finite() && h.alpha >= 1.0) {
+            return Err(invalid("hammer alpha", h.alpha, "at least 1"));
+        }
+        if !(h.damping.is_finite() && h.damping >= 0.0) {
+            return Err(invalid("hammer damping", h.damping, "non-negative"));
+        }
+        if !positive(h.velocity) {
+            return Err(invalid("hammer velocity", h.velocity, "positive (m/s)"));
+        }
+        if !(self.size_spread.is_finite() && (0.0..=1.0).contains(&self.size_spread)) {
+            return Err(invalid("size_spread", self.size_spread, "in [0, 1]"));
+        }
+        if self.voices == 0 || self.voices > MAX_VOICES {
+            return Err(invalid("voices", self.voices as f64, "1 to 8"));
+        }
+        if !(self.events_per_newton.is_finite() && self.events_per_newton >= 0.0) {
+            return Err(invalid(
+                "events_per_newton",
+                self.events_per_newton,
+                "non-negative and finite",
+            ));
+        }
+        if !positive(self.output_gain) {
+            return Err(invalid(
+                "output_gain",
+                self.output_gain,
+                "positive and finite",
+            ));
+        }
+        Ok(())
+    }
+}
