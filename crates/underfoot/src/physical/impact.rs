@@ -262,15 +262,49 @@ impl Impact {
     /// contact point (m/s, with gains in m/(N·s)); for a rigid surface, the contact force
     /// (N) over the sample.
     pub fn process(&mut self, out: &mut [f32]) {
-        for o in out.iter_mut() {
-            *o = self.step() as f32;
-        }
+        out.fill(0.0);
+        self.process_add(out);
     }
 
     /// Adds one block to `out` (see [`process`](Self::process)), for a sum of impacts.
+    ///
+    /// While a hammer may still touch, sample by sample; once it has left for good
+    /// ([`withdraw_if_gone`](Self::withdraw_if_gone)), the surface rings on alone
+    /// through the bank's free loop, with no contact bookkeeping.
     pub(crate) fn process_add(&mut self, out: &mut [f32]) {
-        for o in out.iter_mut() {
-            *o += self.step() as f32;
+        let mut rest = out;
+        while self.armed && !rest.is_empty() {
+            let (head, tail) = rest.split_at_mut(rest.len().min(WITHDRAW_CHECK));
+            for o in head.iter_mut() {
+                *o += self.step() as f32;
+            }
+            rest = tail;
+            self.withdraw_if_gone();
+        }
+        if let Some(bank) = &mut self.surface
+            && !rest.is_empty()
+        {
+            bank.add_free_velocity(rest);
+            self.ys = bank.displacement();
+        }
+    }
+
+    /// Withdraws a hammer that can never touch the surface again.
+    ///
+    /// Out of contact the hammer moves at a constant velocity; moving away (`v ≤ 0`) its
+    /// position `y_h = x + y_s` never rises. The surface's modes only decay (`|p_k| < 1`),
+    /// so with non-negative gains `y_s ≥ -Σ g_k |z_k|` now and ever after. A hammer below
+    /// that bound is gone for good; nothing observable changes when it is withdrawn.
+    fn withdraw_if_gone(&mut self) {
+        if !self.armed || self.v > 0.0 || self.x > 0.0 {
+            return;
+        }
+        let reach = self
+            .surface
+            .as_ref()
+            .map_or(0.0, ResonatorBank::amplitude_bound);
+        if self.x + self.ys < -reach {
+            self.armed = false;
         }
     }
 
@@ -493,6 +527,9 @@ fn compliance_of(period: f64, mass: f64, h1: f64) -> f64 {
 fn compliance(period: f64, mass: f64, bank: &ResonatorBank) -> f64 {
     compliance_of(period, mass, bank.first_sample_gain())
 }
+
+/// Samples between checks that a hammer has left for good.
+const WITHDRAW_CHECK: usize = 16;
 
 fn check_velocity(velocity: f64) -> Result<(), PhysicalError> {
     if velocity.is_finite() && velocity >= 0.0 {

@@ -307,6 +307,29 @@ impl ResonatorBank {
         (velocity, displacement)
     }
 
+    /// Rings freely over `out`, adding the velocity of each sample to it (as
+    /// [`velocity`](Self::velocity) then `tick(0.0)`, sample by sample).
+    pub(crate) fn add_free_velocity(&mut self, out: &mut [f32]) {
+        for o in out.iter_mut() {
+            let mut velocity = 0.0;
+            for ((z, p), gs) in self.state.iter_mut().zip(&self.pole).zip(&self.gain_slope) {
+                velocity += gs.re * z.im + gs.im * z.re;
+                *z *= p;
+            }
+            *o += velocity as f32;
+        }
+    }
+
+    /// `Σ |g_k| |z_k|`: no displacement, now or later without input, exceeds it in size
+    /// (each `|z_k|` only decays).
+    pub(crate) fn amplitude_bound(&self) -> f64 {
+        self.state
+            .iter()
+            .zip(&self.gain)
+            .map(|(z, g)| g.abs() * z.norm())
+            .sum()
+    }
+
     /// Adds the impulse `J` (N·s) of the sample just advanced by
     /// [`advance_free`](Self::advance_free): `z_k += p_k J`, so that together they are
     /// `z_k ← p_k (z_k + J)` as in [`tick`](Self::tick), and the displacement grows by
