@@ -3,7 +3,8 @@
 //! Everything that happens on the audio thread is exercised: all three drives, force
 //! readings, steps, material switches mid-walk (crossfades), a material replaced in the
 //! bank, non-finite input, the limiter working, the watchdog fading out and the
-//! shut-down fade.
+//! shut-down fade. The physical aggregate model too: Poisson events, retuned voices,
+//! stolen voices, explicit strikes and resets.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -13,8 +14,9 @@ use underfoot::engine::{self, EngineConfig, Event, MaterialBank, TimedEvent};
 use underfoot::force::SensorReading;
 use underfoot::force::gait::nominal_step;
 use underfoot::material::builtin::builtin;
+use underfoot::physical::{Aggregate, AggregateParams, Mode};
 use underfoot::synthesis::{PreparedMaterial, VoiceConfig};
-use underfoot::units::{Decibels, Newtons, SampleRate};
+use underfoot::units::{Decibels, Hz, Newtons, SampleRate, Seconds};
 
 struct Counting;
 
@@ -144,4 +146,55 @@ fn rendering_never_allocates_or_frees() {
             "{t:?}"
         );
     }
+}
+
+#[test]
+fn the_aggregate_model_never_allocates_or_frees() {
+    let rate = SampleRate(48_000);
+    let modes: Vec<Mode> = [
+        (180.0, 0.08, 2e-3),
+        (640.0, 0.04, 1e-3),
+        (2100.0, 0.02, 5e-4),
+    ]
+    .iter()
+    .map(|&(f, tau, gain)| Mode {
+        frequency: Hz(f),
+        decay: Seconds(tau),
+        gain,
+    })
+    .collect();
+    let params = AggregateParams {
+        size_spread: 0.4,
+        ..AggregateParams::default()
+    };
+    let mut agg = Aggregate::new(&modes, &params, rate, 42).unwrap();
+    let mut rates = vec![0.0f32; 480];
+    let mut out = vec![0.0f32; 480];
+    for block in 0..600usize {
+        // A footstep-like rise and fall of the rate, floods (voice stealing and the
+        // per-sample cap), silences (voices coming to rest) and invalid rates.
+        for (n, r) in rates.iter_mut().enumerate() {
+            let t = (block * 480 + n) as f32 / 48_000.0;
+            *r = match block % 100 {
+                0..=39 => 2000.0 * (t * 3.0).sin().max(0.0),
+                40..=44 => 1e6,
+                45..=49 => [f32::NAN, -3.0, f32::INFINITY][n % 3],
+                _ => 0.0,
+            };
+        }
+        let frames = if block % 3 == 0 { 480 } else { 128 };
+        let (r, o) = (&rates[..frames], &mut out[..frames]);
+        let n = allocations_in(|| {
+            agg.process(r, o);
+            if block % 37 == 5 {
+                agg.strike(2.0);
+            }
+            if block == 300 {
+                agg.reset();
+            }
+        });
+        assert_eq!(n, 0, "block {block} allocated {n} times");
+        assert!(out[..frames].iter().all(|v| v.is_finite()));
+    }
+    assert!(agg.events() > 1000, "{}", agg.events());
 }

@@ -207,14 +207,15 @@ impl Impact {
             }
         };
         let period = 1.0 / rate.hz();
-        let h1 = surface
-            .as_ref()
-            .map_or(0.0, ResonatorBank::first_sample_gain);
+        let compliance = match &surface {
+            Some(bank) => compliance(period, params.mass, bank),
+            None => compliance_of(period, params.mass, 0.0),
+        };
         let mut impact = Self {
             params,
             surface,
             period,
-            compliance: period * period / (2.0 * params.mass) + period * h1,
+            compliance,
             armed: false,
             x: 0.0,
             v: 0.0,
@@ -261,9 +262,92 @@ impl Impact {
     /// contact point (m/s, with gains in m/(N·s)); for a rigid surface, the contact force
     /// (N) over the sample.
     pub fn process(&mut self, out: &mut [f32]) {
-        for o in out.iter_mut() {
-            *o = self.step() as f32;
+        out.fill(0.0);
+        self.process_add(out);
+    }
+
+    /// Adds one block to `out` (see [`process`](Self::process)), for a sum of impacts.
+    ///
+    /// While a hammer may still touch, sample by sample; once it has left for good
+    /// ([`withdraw_if_gone`](Self::withdraw_if_gone)), the surface rings on alone
+    /// through the bank's free loop, with no contact bookkeeping.
+    pub(crate) fn process_add(&mut self, out: &mut [f32]) {
+        let mut rest = out;
+        while self.armed && !rest.is_empty() {
+            let (head, tail) = rest.split_at_mut(rest.len().min(WITHDRAW_CHECK));
+            for o in head.iter_mut() {
+                *o += self.step() as f32;
+            }
+            rest = tail;
+            self.withdraw_if_gone();
         }
+        if let Some(bank) = &mut self.surface
+            && !rest.is_empty()
+        {
+            bank.add_free_velocity(rest);
+            self.ys = bank.displacement();
+        }
+    }
+
+    /// Withdraws a hammer that can never touch the surface again.
+    ///
+    /// Out of contact the hammer moves at a constant velocity; moving away (`v ≤ 0`) its
+    /// position `y_h = x + y_s` never rises. The surface's modes only decay (`|p_k| < 1`),
+    /// so with non-negative gains `y_s ≥ -Σ g_k |z_k|` now and ever after. A hammer below
+    /// that bound is gone for good; nothing observable changes when it is withdrawn.
+    fn withdraw_if_gone(&mut self) {
+        if !self.armed || self.v > 0.0 || self.x > 0.0 {
+            return;
+        }
+        let reach = self
+            .surface
+            .as_ref()
+            .map_or(0.0, ResonatorBank::amplitude_bound);
+        if self.x + self.ys < -reach {
+            self.armed = false;
+        }
+    }
+
+    /// Moves the surface's modes to `frequency_scale` times their frequencies as given
+    /// (see [`ResonatorBank::retune`]: decay times, gains and the surface's motion are
+    /// kept) and updates the contact's compliance to the new `h[1]`. Nothing to do on a
+    /// rigid surface. Real time: no allocation.
+    ///
+    /// Retuning while the hammer is on the surface is allowed (the contact carries on
+    /// against the retuned surface) but is not a physical event; retune between strikes.
+    ///
+    /// # Errors
+    /// A scale that is not positive and finite; nothing is changed.
+    pub fn retune(&mut self, frequency_scale: f64) -> Result<(), PhysicalError> {
+        match &mut self.surface {
+            Some(bank) => {
+                bank.retune(frequency_scale)?;
+                self.compliance = compliance(self.period, self.params.mass, bank);
+            }
+            None => {
+                if !(frequency_scale.is_finite() && frequency_scale > 0.0) {
+                    return Err(PhysicalError::InvalidParameter {
+                        name: "frequency_scale",
+                        value: frequency_scale,
+                        expected: "positive and finite",
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The resonating surface, `None` for a rigid one.
+    #[must_use]
+    pub fn surface(&self) -> Option<&ResonatorBank> {
+        self.surface.as_ref()
+    }
+
+    /// Whether the hammer is on the surface or still on its way to it (struck and not yet
+    /// rebounded). Once it has left it never comes back unless the surface catches it up.
+    #[must_use]
+    pub fn is_striking(&self) -> bool {
+        self.armed && (self.x > 0.0 || self.v > 0.0)
     }
 
     /// The hammer's velocity toward the surface now (negative once it has rebounded).
@@ -389,12 +473,14 @@ impl Impact {
     }
 
     fn step(&mut self) -> f64 {
-        let (out, free, h1) = match &self.surface {
-            Some(bank) => (
-                bank.velocity(),
-                bank.free_next_displacement(),
-                bank.first_sample_gain(),
-            ),
+        // The surface rings freely first; the contact's impulse, found from where that
+        // leaves it, is added after (`add_delayed_impulse`), so the modes are walked once
+        // per sample out of contact and twice in it.
+        let (out, free, h1) = match &mut self.surface {
+            Some(bank) => {
+                let (velocity, free) = bank.advance_free();
+                (velocity, free, bank.first_sample_gain())
+            }
             None => (0.0, 0.0, 0.0),
         };
         let mut force = 0.0;
@@ -411,8 +497,10 @@ impl Impact {
             self.x = x1;
             self.record(x0, x1, force);
         }
-        if let Some(bank) = &mut self.surface {
-            bank.tick(force * self.period);
+        if force != 0.0
+            && let Some(bank) = &mut self.surface
+        {
+            bank.add_delayed_impulse(force * self.period);
         }
         self.ys = free + h1 * force * self.period;
         if self.surface.is_some() { out } else { force }
@@ -430,6 +518,18 @@ impl Impact {
         s.samples += 1;
     }
 }
+
+/// `C = T^2/(2m) + T h[1]` for a surface whose first sample gain is `h[1]`.
+fn compliance_of(period: f64, mass: f64, h1: f64) -> f64 {
+    period * period / (2.0 * mass) + period * h1
+}
+
+fn compliance(period: f64, mass: f64, bank: &ResonatorBank) -> f64 {
+    compliance_of(period, mass, bank.first_sample_gain())
+}
+
+/// Samples between checks that a hammer has left for good.
+const WITHDRAW_CHECK: usize = 16;
 
 fn check_velocity(velocity: f64) -> Result<(), PhysicalError> {
     if velocity.is_finite() && velocity >= 0.0 {
@@ -633,6 +733,50 @@ mod tests {
         let tail = |s: &[f32]| s.iter().map(|v| v * v).sum::<f32>();
         assert!(tail(&out[4800..7200]) > 0.0);
         assert!(tail(&out[7200..]) < tail(&out[4800..7200]));
+    }
+
+    #[test]
+    fn a_retuned_impact_strikes_like_one_built_retuned() {
+        let modes = [
+            Mode {
+                frequency: Hz(120.0),
+                decay: Seconds(0.1),
+                gain: 2e-3,
+            },
+            Mode {
+                frequency: Hz(700.0),
+                decay: Seconds(0.03),
+                gain: 1e-3,
+            },
+        ];
+        let scale = 0.8;
+        let scaled = modes.map(|m| Mode {
+            frequency: Hz(m.frequency.0 * scale),
+            ..m
+        });
+        let p = params(1.5, 1e7, 1e5);
+        let bank = |m: &[Mode]| Surface::Resonant(ResonatorBank::new(m, RATE).unwrap());
+        let mut retuned = Impact::new(p, bank(&modes), RATE).unwrap();
+        retuned.reset();
+        retuned.retune(scale).unwrap();
+        retuned.strike(p.velocity).unwrap();
+        let mut fresh = Impact::new(p, bank(&scaled), RATE).unwrap();
+        assert!((retuned.compliance / fresh.compliance - 1.0).abs() < 1e-12);
+        let (mut a, mut b) = (vec![0.0f32; 4800], vec![0.0f32; 4800]);
+        retuned.process(&mut a);
+        fresh.process(&mut b);
+        let peak = b.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        let err = a
+            .iter()
+            .zip(&b)
+            .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
+        assert!(err < 1e-5 * peak, "{err} of {peak}");
+        assert!(!retuned.is_striking());
+        // A rigid surface has nothing to retune but still checks the scale.
+        let mut rigid = Impact::new(p, Surface::Rigid, RATE).unwrap();
+        assert!(rigid.retune(2.0).is_ok());
+        assert!(rigid.retune(f64::NAN).is_err());
+        assert!(rigid.surface().is_none());
     }
 
     #[test]

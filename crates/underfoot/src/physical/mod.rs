@@ -9,14 +9,18 @@
 //! - [`resonator`]: the surface, a [`ResonatorBank`] of modes discretised by impulse
 //!   invariance, also available as second-order sections for interchange;
 //! - [`impact`]: the Hunt-Crossley contact between a hammer and a rigid or resonating
-//!   surface, integrated by an energy-consistent implicit step.
+//!   surface, integrated by an energy-consistent implicit step;
+//! - [`aggregate`]: gravel, snow or sand as a Poisson stream of micro-impacts of random
+//!   energy and fragment size, at a rate `N(t)` the caller drives, on a pool of impacts.
 //!
-//! Both are prepared once (where they may allocate and validate) and then run without
+//! All are prepared once (where they may allocate and validate) and then run without
 //! allocating or panicking.
 
+pub mod aggregate;
 pub mod impact;
 pub mod resonator;
 
+pub use aggregate::{Aggregate, AggregateParams};
 pub use impact::{Impact, ImpactParams, Surface};
 pub use resonator::{Mode, ResonatorBank};
 

@@ -63,6 +63,13 @@ pub struct Mode {
     pub gain: f64,
 }
 
+/// The highest frequency [`ResonatorBank::retune`] moves a mode to, as a fraction of the
+/// sample rate.
+const RETUNE_CEILING: f64 = 0.49;
+
+/// Modes summed side by side in the free loop.
+const LANES: usize = 4;
+
 /// A bank of damped modes running in parallel, one complex one-pole each.
 ///
 /// Allocates at construction only; [`tick`](Self::tick) and
@@ -71,6 +78,8 @@ pub struct Mode {
 pub struct ResonatorBank {
     rate: SampleRate,
     modes: Vec<Mode>,
+    /// The factor applied to every frequency of `modes` (see [`ResonatorBank::retune`]).
+    scale: f64,
     pole: Vec<Complex64>,
     /// `g_k`, to read the displacement from the state.
     gain: Vec<f64>,
@@ -96,7 +105,6 @@ impl ResonatorBank {
         if modes.is_empty() {
             return Err(PhysicalError::NoModes);
         }
-        let fs = rate.hz();
         for (index, m) in modes.iter().enumerate() {
             let f = m.frequency.0;
             if !(f.is_finite() && f > 0.0 && f < rate.nyquist().0) {
@@ -119,22 +127,71 @@ impl ResonatorBank {
                 });
             }
         }
-        let slope = |m: &Mode| Complex64::new(-1.0 / m.decay.0, rate.omega(m.frequency) * fs);
-        let pole: Vec<Complex64> = modes.iter().map(|m| (slope(m) / fs).exp()).collect();
-        let gain: Vec<f64> = modes.iter().map(|m| m.gain).collect();
-        let gain_pole = pole.iter().zip(&gain).map(|(p, g)| p * g).collect();
-        let gain_slope = modes.iter().map(|m| slope(m) * m.gain).collect();
-        let first_sample = pole.iter().zip(&gain).map(|(p, g)| g * p.im).sum();
-        Ok(Self {
+        let zero = Complex64::new(0.0, 0.0);
+        let mut bank = Self {
             rate,
             modes: modes.to_vec(),
-            pole,
-            gain,
-            gain_pole,
-            gain_slope,
-            state: vec![Complex64::new(0.0, 0.0); modes.len()],
-            first_sample,
-        })
+            scale: 1.0,
+            pole: vec![zero; modes.len()],
+            gain: modes.iter().map(|m| m.gain).collect(),
+            gain_pole: vec![zero; modes.len()],
+            gain_slope: vec![zero; modes.len()],
+            state: vec![zero; modes.len()],
+            first_sample: 0.0,
+        };
+        bank.tune();
+        Ok(bank)
+    }
+
+    /// Recomputes every coefficient from the modes and the frequency scale, in place.
+    fn tune(&mut self) {
+        let fs = self.rate.hz();
+        let ceiling = RETUNE_CEILING * fs;
+        self.first_sample = 0.0;
+        for (k, m) in self.modes.iter().enumerate() {
+            let f = (m.frequency.0 * self.scale).min(ceiling);
+            let slope = Complex64::new(-1.0 / m.decay.0, std::f64::consts::TAU * f);
+            let pole = (slope / fs).exp();
+            self.pole[k] = pole;
+            self.gain_pole[k] = pole * m.gain;
+            self.gain_slope[k] = slope * m.gain;
+            self.first_sample += m.gain * pole.im;
+        }
+    }
+
+    /// Moves every mode to `frequency_scale` times its frequency as given, keeping its
+    /// decay time and gain and the bank's state (the displacement does not jump; the
+    /// ringing carries on at the new pitch). Scales are absolute, not cumulative:
+    /// `retune(1.0)` restores the modes as given.
+    ///
+    /// A frequency pushed to or past the Nyquist frequency cannot be represented; it is
+    /// clamped to `0.49 f_s`, where the pole is still complex so the mode still rings
+    /// (and `h[1]` stays positive for non-negative gains, which [`Impact`] relies on).
+    ///
+    /// Real time: no allocation, one complex exponential per mode.
+    ///
+    /// # Errors
+    /// [`PhysicalError::InvalidParameter`] when the scale is not positive and finite; the
+    /// bank is left as it was.
+    ///
+    /// [`Impact`]: super::Impact
+    pub fn retune(&mut self, frequency_scale: f64) -> Result<(), PhysicalError> {
+        if !(frequency_scale.is_finite() && frequency_scale > 0.0) {
+            return Err(PhysicalError::InvalidParameter {
+                name: "frequency_scale",
+                value: frequency_scale,
+                expected: "positive and finite",
+            });
+        }
+        self.scale = frequency_scale;
+        self.tune();
+        Ok(())
+    }
+
+    /// The scale set by [`retune`](Self::retune) (1 when built).
+    #[must_use]
+    pub fn frequency_scale(&self) -> f64 {
+        self.scale
     }
 
     /// The rate the bank runs at.
@@ -215,14 +272,92 @@ impl ResonatorBank {
         x
     }
 
-    /// The displacement the bank will have at the next sample if this sample's impulse is
-    /// zero: `Σ Im(g_k p_k z_k[n])`.
-    pub(crate) fn free_next_displacement(&self) -> f64 {
+    /// The vibrational energy the bank holds, `Σ ½ ω_k g_k |z_k|²` (joules when the gains
+    /// are in m/(N·s)).
+    ///
+    /// A mode of modal mass `m_k = 1/(ω_k g_k)` set moving by an impulse `J` holds
+    /// `J²/(2 m_k)`; `|z_k|` is the amplitude of its impulse-equivalent state, so this is
+    /// the energy of the envelope: it decays smoothly as `e^{-2t/τ_k}` without the
+    /// twice-per-period exchange between kinetic and potential energy. With `ω_k` at the
+    /// current tuning.
+    #[must_use]
+    pub fn energy(&self) -> f64 {
+        0.5 * self
+            .state
+            .iter()
+            .zip(&self.gain_slope)
+            .map(|(z, gs)| gs.im * z.norm_sqr())
+            .sum::<f64>()
+    }
+
+    /// Advances one sample with no impulse and returns the velocity before the step and
+    /// the displacement after it: [`velocity`](Self::velocity), `tick(0.0)` and
+    /// [`displacement`](Self::displacement) in one pass over the modes.
+    /// [`add_delayed_impulse`](Self::add_delayed_impulse) then adds the step's impulse.
+    pub(crate) fn advance_free(&mut self) -> (f64, f64) {
+        let (mut velocity, mut displacement) = (0.0, 0.0);
+        for (((z, p), g), gs) in self
+            .state
+            .iter_mut()
+            .zip(&self.pole)
+            .zip(&self.gain)
+            .zip(&self.gain_slope)
+        {
+            velocity += gs.re * z.im + gs.im * z.re;
+            *z *= p;
+            displacement += g * z.im;
+        }
+        (velocity, displacement)
+    }
+
+    /// Rings freely over `out`, adding the velocity of each sample to it (as
+    /// [`velocity`](Self::velocity) then `tick(0.0)`, sample by sample).
+    pub(crate) fn add_free_velocity(&mut self, out: &mut [f32]) {
+        // Modes in groups of four with a partial sum each: one running sum would make
+        // every sample wait on a chain of additions as long as the bank.
+        let split = self.state.len() / LANES * LANES;
+        let (state, state_tail) = self.state.split_at_mut(split);
+        let (pole, pole_tail) = self.pole.split_at(split);
+        let (slope, slope_tail) = self.gain_slope.split_at(split);
+        for o in out.iter_mut() {
+            let mut lanes = [0.0; LANES];
+            for ((z, p), gs) in state
+                .chunks_exact_mut(LANES)
+                .zip(pole.chunks_exact(LANES))
+                .zip(slope.chunks_exact(LANES))
+            {
+                for l in 0..LANES {
+                    lanes[l] += gs[l].re * z[l].im + gs[l].im * z[l].re;
+                    z[l] *= p[l];
+                }
+            }
+            let mut velocity = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+            for ((z, p), gs) in state_tail.iter_mut().zip(pole_tail).zip(slope_tail) {
+                velocity += gs.re * z.im + gs.im * z.re;
+                *z *= p;
+            }
+            *o += velocity as f32;
+        }
+    }
+
+    /// `Σ |g_k| |z_k|`: no displacement, now or later without input, exceeds it in size
+    /// (each `|z_k|` only decays).
+    pub(crate) fn amplitude_bound(&self) -> f64 {
         self.state
             .iter()
-            .zip(&self.gain_pole)
-            .map(|(z, gp)| gp.re * z.im + gp.im * z.re)
+            .zip(&self.gain)
+            .map(|(z, g)| g.abs() * z.norm())
             .sum()
+    }
+
+    /// Adds the impulse `J` (N·s) of the sample just advanced by
+    /// [`advance_free`](Self::advance_free): `z_k += p_k J`, so that together they are
+    /// `z_k ← p_k (z_k + J)` as in [`tick`](Self::tick), and the displacement grows by
+    /// `h[1] J`.
+    pub(crate) fn add_delayed_impulse(&mut self, impulse: f64) {
+        for (z, p) in self.state.iter_mut().zip(&self.pole) {
+            *z += p * impulse;
+        }
     }
 
     /// `h[1]`: how much the next displacement moves per unit impulse now.
@@ -443,6 +578,160 @@ mod tests {
             (slope - v0).abs() < 0.02 * v0.abs().max(1e-3),
             "{slope} vs {v0}"
         );
+    }
+
+    #[test]
+    fn retune_gives_exact_frequencies_and_keeps_the_state() {
+        let rate = SampleRate(8000);
+        let mut bank = ResonatorBank::new(&three_modes(), rate).unwrap();
+        bank.tick(1.0);
+        for _ in 0..37 {
+            bank.tick(0.0);
+        }
+        let (y, state) = (bank.displacement(), bank.state.clone());
+        let scale = 1.37;
+        bank.retune(scale).unwrap();
+        assert_eq!(bank.frequency_scale(), scale);
+        assert_eq!(bank.state, state);
+        assert_eq!(bank.displacement(), y);
+        assert_eq!(bank.modes(), three_modes());
+        // The same coefficients as a bank built at the scaled frequencies.
+        let scaled: Vec<Mode> = three_modes()
+            .iter()
+            .map(|m| Mode {
+                frequency: Hz(m.frequency.0 * scale),
+                ..*m
+            })
+            .collect();
+        let fresh = ResonatorBank::new(&scaled, rate).unwrap();
+        for (p, q) in bank.poles().iter().zip(fresh.poles()) {
+            assert!((p - q).norm() < 1e-14, "{p} vs {q}");
+        }
+        for (p, m) in bank.poles().iter().zip(&scaled) {
+            let f = p.arg() * rate.hz() / std::f64::consts::TAU;
+            assert!(
+                (f / m.frequency.0 - 1.0).abs() < 1e-12,
+                "{f} vs {}",
+                m.frequency
+            );
+        }
+        assert!((bank.first_sample_gain() / fresh.first_sample_gain() - 1.0).abs() < 1e-12);
+        // And the impulse response's modes are there (Prony).
+        let h = bank.impulse_response(rate.samples_in(Seconds(0.5)));
+        for (m, (f, tau)) in scaled.iter().zip(prony(&h, 3, rate)) {
+            assert!(
+                (f / m.frequency.0 - 1.0).abs() < 0.01,
+                "{f} vs {}",
+                m.frequency
+            );
+            assert!((tau / m.decay.0 - 1.0).abs() < 0.01, "{tau} vs {}", m.decay);
+        }
+        // Absolute, not cumulative.
+        bank.retune(1.0).unwrap();
+        let original = ResonatorBank::new(&three_modes(), rate).unwrap();
+        for (p, q) in bank.poles().iter().zip(original.poles()) {
+            assert!((p - q).norm() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn retune_clamps_below_nyquist_and_rejects_bad_scales() {
+        let rate = SampleRate(8000);
+        let mut bank = ResonatorBank::new(&three_modes(), rate).unwrap();
+        // 1200 Hz * 4 = 4800 Hz, past Nyquist: clamped to 0.49 f_s = 3920 Hz.
+        bank.retune(4.0).unwrap();
+        let top = bank.poles()[2];
+        let f = top.arg() * rate.hz() / std::f64::consts::TAU;
+        assert!((f - 3920.0).abs() < 1e-9, "{f}");
+        assert!(top.im > 0.0 && bank.first_sample_gain() > 0.0);
+        let before = bank.clone();
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            assert!(matches!(
+                bank.retune(bad),
+                Err(PhysicalError::InvalidParameter { .. })
+            ));
+        }
+        assert_eq!(bank, before);
+    }
+
+    #[test]
+    fn energy_is_the_modal_kinetic_energy_and_decays() {
+        let rate = SampleRate(48_000);
+        let m = three_modes()[1];
+        let mut bank = ResonatorBank::new(&[m], rate).unwrap();
+        let impulse = 0.3;
+        bank.tick(impulse);
+        // J^2 / (2 m_k) with m_k = 1 / (2π f g).
+        let expected = impulse * impulse * std::f64::consts::TAU * m.frequency.0 * m.gain / 2.0;
+        let e0 = bank.energy();
+        // One sample of decay has passed.
+        let decayed = expected * (-2.0 / (m.decay.0 * rate.hz())).exp();
+        assert!((e0 / decayed - 1.0).abs() < 1e-12, "{e0} vs {decayed}");
+        let n = rate.samples_in(m.decay);
+        for _ in 0..n {
+            bank.tick(0.0);
+        }
+        let ratio = bank.energy() / e0;
+        let theory = (-2.0 * n as f64 / (m.decay.0 * rate.hz())).exp();
+        assert!((ratio / theory - 1.0).abs() < 1e-9, "{ratio} vs {theory}");
+    }
+
+    #[test]
+    fn the_fused_free_step_matches_tick() {
+        let rate = SampleRate(48_000);
+        let mut a = ResonatorBank::new(&three_modes(), rate).unwrap();
+        let mut b = a.clone();
+        for n in 0..300 {
+            let j = if n % 50 < 3 { 0.1 * n as f64 } else { 0.0 };
+            // The velocity is a sum of large terms that cancel: compare to their size.
+            let size: f64 = a
+                .state
+                .iter()
+                .zip(&a.gain_slope)
+                .map(|(z, gs)| z.norm() * gs.norm())
+                .sum();
+            let v = a.velocity();
+            a.tick(j);
+            let (vb, free) = b.advance_free();
+            b.add_delayed_impulse(j);
+            assert!((v - vb).abs() <= 1e-12 * size.max(1.0), "{v} vs {vb}");
+            let y = b.displacement();
+            assert!((free + b.first_sample_gain() * j - y).abs() <= 1e-12 * y.abs().max(1e-9));
+            assert!((a.displacement() - y).abs() <= 1e-12 * y.abs().max(1e-9));
+        }
+    }
+
+    #[test]
+    fn the_free_loop_matches_tick_for_any_number_of_modes() {
+        let rate = SampleRate(48_000);
+        for count in [1, 3, 4, 6, 9] {
+            let modes: Vec<Mode> = (0..count)
+                .map(|k| Mode {
+                    frequency: Hz(70.0 * 1.6f64.powi(k)),
+                    decay: Seconds(0.05),
+                    gain: 1e-3,
+                })
+                .collect();
+            let mut a = ResonatorBank::new(&modes, rate).unwrap();
+            a.tick(0.01);
+            let mut b = a.clone();
+            let expected: Vec<f32> = (0..200)
+                .map(|_| {
+                    let v = a.velocity();
+                    a.tick(0.0);
+                    0.5 + v as f32
+                })
+                .collect();
+            let mut out = vec![0.5f32; 200];
+            b.add_free_velocity(&mut out);
+            for (x, y) in expected.iter().zip(&out) {
+                assert!(
+                    (x - y).abs() <= 1e-6 * x.abs().max(1.0),
+                    "{count} modes: {x} vs {y}"
+                );
+            }
+            assert!((a.displacement() - b.displacement()).abs() <= 1e-12 * a.amplitude_bound());
+        }
     }
 
     #[test]
