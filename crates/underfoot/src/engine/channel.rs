@@ -6,6 +6,7 @@ use crate::force::condition::ForceConditioner;
 use crate::force::drive::{DriveKind, Polarity};
 use crate::force::steps::StepDetector;
 use crate::safety::Watchdog;
+use crate::physical::Ground;
 use crate::signal::noise::SplitMix64;
 use crate::synthesis::{PreparedMaterial, Voice};
 
@@ -22,6 +23,10 @@ pub(super) struct Channel {
     sigma: f32,
     /// The voice playing now, and the one fading out after a material change.
     voices: [Voice; 2],
+    /// The same for materials played by their physical model (when the bank has them),
+    /// and which of the two each slot plays.
+    grounds: Option<[Ground; 2]>,
+    physical: [bool; 2],
     current: usize,
     slot: Option<u16>,
     fade_left: u32,
@@ -30,12 +35,16 @@ pub(super) struct Channel {
     previous_total: f32,
     last_drive: f32,
     drive_buf: Vec<f32>,
+    /// The loading rate `v_F` (N/s) of the block, for physical models.
+    loading_buf: Vec<f32>,
     out_a: Vec<f32>,
     out_b: Vec<f32>,
 }
 
 impl Channel {
-    pub(super) fn new(config: &EngineConfig, index: usize) -> Self {
+    /// `ground` is any physical model of the bank: the channel keeps two copies to load
+    /// the bank's physical models into without allocating.
+    pub(super) fn new(config: &EngineConfig, index: usize, ground: Option<&Ground>) -> Self {
         let rate = config.rate;
         Self {
             conditioner: ForceConditioner::new(rate, config.sensor_rate),
@@ -49,6 +58,8 @@ impl Channel {
             rate_hz: rate.hz(),
             sigma: config.perturbation,
             voices: [Voice::new(), Voice::new()],
+            grounds: ground.map(|g| [g.clone(), g.clone()]),
+            physical: [false; 2],
             current: 0,
             slot: None,
             fade_left: 0,
@@ -57,6 +68,7 @@ impl Channel {
             previous_total: 0.0,
             last_drive: 0.0,
             drive_buf: vec![0.0; config.max_block],
+            loading_buf: vec![0.0; config.max_block],
             out_a: vec![0.0; config.max_block],
             out_b: vec![0.0; config.max_block],
         }
@@ -72,9 +84,18 @@ impl Channel {
             return;
         }
         let next = 1 - self.current;
-        self.voices[next].load(material, self.drive);
-        self.voices[next].perturb(&mut self.rng, self.sigma);
-        self.voices[next].settle(self.last_drive);
+        match (&material.ground, &mut self.grounds) {
+            (Some(model), Some(grounds)) => {
+                grounds[next].assign_from(model);
+                self.physical[next] = true;
+            }
+            _ => {
+                self.voices[next].load(material, self.drive);
+                self.voices[next].perturb(&mut self.rng, self.sigma);
+                self.voices[next].settle(self.last_drive);
+                self.physical[next] = false;
+            }
+        }
         let had_material = self.slot.is_some();
         self.current = next;
         self.slot = Some(slot);
@@ -101,6 +122,12 @@ impl Channel {
             return;
         }
         self.watchdog.feed_step();
+        if let (true, Some(grounds)) = (self.physical[self.current], &mut self.grounds) {
+            // No force will follow: the physical model plays a nominal step itself.
+            telemetry.count_strike();
+            grounds[self.current].step(intensity.clamp(0.0, 4.0));
+            return;
+        }
         self.strike(intensity.clamp(0.0, 4.0), telemetry);
         // A step event is an impulse whatever the drive: there is no force to follow.
         if self.drive != DriveKind::Impulse {
@@ -110,6 +137,9 @@ impl Channel {
 
     fn strike(&mut self, intensity: f32, telemetry: &Telemetry) {
         telemetry.count_strike();
+        if let (true, Some(grounds)) = (self.physical[self.current], &mut self.grounds) {
+            grounds[self.current].strike(intensity);
+        }
         for v in &mut self.voices {
             v.perturb(&mut self.rng, self.sigma);
         }
@@ -122,8 +152,16 @@ impl Channel {
     pub(super) fn render(&mut self, out: &mut [f32]) -> u32 {
         let n = out.len().min(self.drive_buf.len());
         let drive = &mut self.drive_buf[..n];
-        for x in drive.iter_mut() {
+        let loading = &mut self.loading_buf[..n];
+        for (x, v) in drive.iter_mut().zip(loading.iter_mut()) {
             let total = self.conditioner.next_total();
+            *v = DriveKind::ForceRate.sample(
+                f64::from(total),
+                f64::from(self.previous_total),
+                self.rate_hz,
+                self.polarity,
+                1.0,
+            ) as f32;
             *x = self.drive.sample(
                 f64::from(total),
                 f64::from(self.previous_total),
@@ -150,9 +188,37 @@ impl Channel {
             out[..n].fill(0.0);
         } else {
             let (cur, old) = (self.current, 1 - self.current);
-            resets += self.voices[cur].process(drive, &mut self.out_a[..n]);
+            let loading = &self.loading_buf[..n];
+            let [ground_a, ground_b] = match &mut self.grounds {
+                Some([a, b]) => [Some(a), Some(b)],
+                None => [None, None],
+            };
+            let (ground_cur, ground_old) = if cur == 0 {
+                (ground_a, ground_b)
+            } else {
+                (ground_b, ground_a)
+            };
+            let [voice_a, voice_b] = &mut self.voices;
+            let (voice_cur, voice_old) = if cur == 0 {
+                (voice_a, voice_b)
+            } else {
+                (voice_b, voice_a)
+            };
+            resets += play(
+                voice_cur,
+                ground_cur.filter(|_| self.physical[cur]),
+                drive,
+                loading,
+                &mut self.out_a[..n],
+            );
             if self.fade_left > 0 {
-                resets += self.voices[old].process(drive, &mut self.out_b[..n]);
+                resets += play(
+                    voice_old,
+                    ground_old.filter(|_| self.physical[old]),
+                    drive,
+                    loading,
+                    &mut self.out_b[..n],
+                );
                 for i in 0..n {
                     // Equal-power crossfade: the two materials' signals are uncorrelated.
                     let t = if self.fade_left > 0 {
@@ -166,6 +232,9 @@ impl Channel {
                 }
                 if self.fade_left == 0 {
                     self.voices[old].reset();
+                    if let Some(grounds) = &mut self.grounds {
+                        grounds[old].reset();
+                    }
                 }
             }
             out[..n].copy_from_slice(&self.out_a[..n]);
@@ -174,5 +243,19 @@ impl Channel {
             *y *= self.watchdog.tick();
         }
         resets
+    }
+}
+
+/// One slot's output: its physical model when it plays one, else its voice.
+fn play(
+    voice: &mut Voice,
+    ground: Option<&mut Ground>,
+    drive: &[f32],
+    loading: &[f32],
+    out: &mut [f32],
+) -> u32 {
+    match ground {
+        Some(g) => g.process(loading, out),
+        None => voice.process(drive, out),
     }
 }

@@ -432,8 +432,9 @@ pub fn build(
     let (retire_tx, retire_rx) = rtrb::RingBuffer::new(config.queue_capacity);
     let telemetry = Arc::new(Telemetry::default());
     let bank: Vec<Box<PreparedMaterial>> = bank.materials.into_iter().map(Box::new).collect();
+    let prototype = bank.iter().find_map(|m| m.ground.as_ref());
     let mut channels: Vec<Channel> = (0..config.channels)
-        .map(|c| Channel::new(config, c))
+        .map(|c| Channel::new(config, c, prototype))
         .collect();
     for (ch, slot) in channels.iter_mut().zip(initial) {
         ch.set_material(*slot, &bank[usize::from(*slot)]);

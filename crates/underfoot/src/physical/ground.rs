@@ -27,7 +27,10 @@ use crate::force::gait::nominal_step;
 use crate::units::SampleRate;
 
 /// A physical model prepared for a rate; see the module documentation.
-#[derive(Debug, Clone)]
+///
+/// A clone keeps the room for any model that [`new`](Self::new) reserves, so clones can
+/// be assigned into without allocating.
+#[derive(Debug)]
 pub struct Ground {
     kind: GroundKind,
     aggregate: Aggregate,
@@ -39,6 +42,25 @@ pub struct Ground {
     nominal: Vec<f32>,
     cursor: usize,
     burst: f32,
+}
+
+impl Clone for Ground {
+    fn clone(&self) -> Self {
+        let mut aggregate = self.aggregate.clone();
+        aggregate.reserve(MAX_MODES, MAX_VOICES);
+        let mut nominal = Vec::with_capacity(self.nominal.capacity());
+        nominal.extend_from_slice(&self.nominal);
+        Self {
+            kind: self.kind,
+            aggregate,
+            events_per_newton: self.events_per_newton,
+            gain: self.gain,
+            rates: self.rates.clone(),
+            nominal,
+            cursor: self.cursor,
+            burst: self.burst,
+        }
+    }
 }
 
 impl Ground {
@@ -146,7 +168,9 @@ impl Ground {
     }
 
     /// Renders `out.len()` samples (at most `loading.len()`), `loading` being `v_F` in N/s.
-    pub fn process(&mut self, loading: &[f32], out: &mut [f32]) {
+    /// Returns 1 if the output went non-finite, in which case the surface was reset and the
+    /// block silenced, else 0.
+    pub fn process(&mut self, loading: &[f32], out: &mut [f32]) -> u32 {
         let n = out.len().min(loading.len());
         let block = self.rates.len();
         let mut at = 0;
@@ -172,6 +196,13 @@ impl Ground {
                 *y *= self.gain;
             }
             at += len;
+        }
+        if out[..n].iter().all(|y| y.is_finite()) {
+            0
+        } else {
+            self.reset();
+            out[..n].fill(0.0);
+            1
         }
     }
 }

@@ -88,7 +88,7 @@ use super::{PhysicalError, ResonatorBank};
 use crate::units::{Newtons, SampleRate, Seconds};
 
 /// The hammer and its contact.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ImpactParams {
     /// The hammer's mass, in kilograms.
     pub mass: f64,
@@ -195,14 +195,6 @@ impl Impact {
                         impact: rate,
                     });
                 }
-                if let Some((index, m)) =
-                    bank.modes().iter().enumerate().find(|(_, m)| m.gain < 0.0)
-                {
-                    return Err(PhysicalError::NegativeDrivingPointGain {
-                        index,
-                        gain: m.gain,
-                    });
-                }
                 Some(bank)
             }
         };
@@ -244,6 +236,32 @@ impl Impact {
         self.x = 0.0;
         self.v = velocity;
         self.stats = StrikeStats::default();
+    }
+
+    /// Becomes a copy of `other`. Reuses the surface's buffers when both strike a
+    /// resonating surface, so that nothing is allocated when this surface has room for
+    /// `other`'s modes ([`ResonatorBank::reserve`]); otherwise the surface is cloned.
+    pub fn assign_from(&mut self, other: &Impact) {
+        match (&mut self.surface, &other.surface) {
+            (Some(mine), Some(theirs)) => mine.assign_from(theirs),
+            (None, None) => {}
+            (mine, theirs) => mine.clone_from(theirs),
+        }
+        self.params = other.params;
+        self.period = other.period;
+        self.compliance = other.compliance;
+        self.armed = other.armed;
+        self.x = other.x;
+        self.v = other.v;
+        self.ys = other.ys;
+        self.stats = other.stats;
+    }
+
+    /// Room for a surface of `modes` modes (see [`assign_from`](Self::assign_from)).
+    pub fn reserve(&mut self, modes: usize) {
+        if let Some(bank) = &mut self.surface {
+            bank.reserve(modes);
+        }
     }
 
     /// Brings the surface to rest and withdraws the hammer.
@@ -816,10 +834,41 @@ mod tests {
             Impact::new(good, Surface::Resonant(other), RATE),
             Err(PhysicalError::RateMismatch { .. })
         ));
-        let negative = ResonatorBank::new(&[mode(1.0), mode(-1.0)], RATE).unwrap();
-        assert!(matches!(
-            Impact::new(good, Surface::Resonant(negative), RATE),
-            Err(PhysicalError::NegativeDrivingPointGain { index: 1, .. })
-        ));
+    }
+
+    #[test]
+    fn a_signed_gain_changes_what_is_felt_not_the_contact() {
+        // The contact sees the driving-point gains |g|; a negative gain only flips that
+        // mode at the point felt.
+        let params = ImpactParams {
+            mass: 0.05,
+            stiffness: 1e6,
+            alpha: 1.5,
+            damping: 0.0,
+            velocity: 0.5,
+        };
+        let mode = |f: f64, gain: f64| Mode {
+            frequency: Hz(f),
+            decay: Seconds(0.05),
+            gain,
+        };
+        let run = |g2: f64| {
+            let bank = ResonatorBank::new(&[mode(100.0, 1e-3), mode(300.0, g2)], RATE).unwrap();
+            let mut impact = Impact::new(params, Surface::Resonant(bank), RATE).unwrap();
+            let mut out = vec![0.0f32; 4800];
+            impact.process(&mut out);
+            (out, impact.peak_force(), impact.contact_time())
+        };
+        let (plus, f_plus, t_plus) = run(5e-4);
+        let (minus, f_minus, t_minus) = run(-5e-4);
+        assert_eq!(f_plus, f_minus);
+        assert_eq!(t_plus, t_minus);
+        let (only_first, ..) = run(0.0);
+        // Felt output: first mode plus or minus the second.
+        for ((p, m), o) in plus.iter().zip(&minus).zip(&only_first) {
+            let sum = f64::from(*p) + f64::from(*m);
+            assert!((sum - 2.0 * f64::from(*o)).abs() <= 1e-5 * f64::from(p.abs()).max(1e-6));
+        }
+        assert!(plus.iter().zip(&minus).any(|(p, m)| (p - m).abs() > 1e-3 * p.abs()));
     }
 }

@@ -11,16 +11,25 @@
 //! - [`impact`]: the Hunt-Crossley contact between a hammer and a rigid or resonating
 //!   surface, integrated by an energy-consistent implicit step;
 //! - [`aggregate`]: gravel, snow or sand as a Poisson stream of micro-impacts of random
-//!   energy and fragment size, at a rate `N(t)` the caller drives, on a pool of impacts.
+//!   energy and fragment size, at a rate `N(t)` the caller drives, on a pool of impacts;
+//! - [`calibrate`]: all of the above identified from recordings, with no hand tuning;
+//! - [`model`]: the calibrated [`PhysicalModel`] as stored in a library file;
+//! - [`ground`]: a calibrated model running, force in and vibration out ([`Ground`]).
 //!
 //! All are prepared once (where they may allocate and validate) and then run without
 //! allocating or panicking.
 
 pub mod aggregate;
+pub mod calibrate;
+pub mod ground;
 pub mod impact;
+pub mod model;
 pub mod resonator;
 
 pub use aggregate::{Aggregate, AggregateParams};
+pub use calibrate::{CalibrationConfig, CalibrationError, KindChoice, calibrate};
+pub use ground::Ground;
+pub use model::{GroundKind, PhysicalModel, PhysicalRecord};
 pub use impact::{Impact, ImpactParams, Surface};
 pub use resonator::{Mode, ResonatorBank};
 
@@ -60,15 +69,6 @@ pub enum PhysicalError {
     /// A mode's gain is not finite.
     #[error("mode {index}: gain {gain} must be finite")]
     BadGain {
-        /// Which mode.
-        index: usize,
-        /// Its gain.
-        gain: f64,
-    },
-    /// A mode of a struck surface has a negative gain: a driving-point mobility has
-    /// non-negative modal gains (each is the square of a mode shape over a modal mass).
-    #[error("mode {index}: gain {gain} is negative, impossible at the point struck")]
-    NegativeDrivingPointGain {
         /// Which mode.
         index: usize,
         /// Its gain.

@@ -35,6 +35,18 @@
 //! force computed from the surface's position is never in a delay-free loop with it.
 //! The velocity is the exact derivative of the continuous response between impulses.
 //!
+//! # Where it is struck, where it is felt
+//!
+//! A mode's gain between two points is `φ_k(a) φ_k(b) / m_k`, the product of its shape
+//! at both. At the point struck (`a = b`) it is positive: the contact sees the
+//! driving-point gains `|g_k|`. The vibration is felt elsewhere (the skin is not the
+//! grain, a microphone is not the floor), so its gains may carry a sign. A bank keeps
+//! one number per mode: `|g_k|` drives [`displacement`](ResonatorBank::displacement), the
+//! contact's side, and the signed `g_k` drives [`velocity`](ResonatorBank::velocity), the
+//! side felt. This assumes the mode's shape has the same size at both points and differs
+//! at most in sign: all that can be identified from one recorded signal. With
+//! non-negative gains both are the same point.
+//!
 //! # Second-order sections
 //!
 //! Mode `k` alone is the section `g_k r_k \sin θ_k z^{-1} / (1 - 2 r_k \cos θ_k z^{-1} + r_k^2 z^{-2})`
@@ -52,14 +64,16 @@ use crate::signal::{Biquad, Sos};
 use crate::units::{Hz, SampleRate, Seconds};
 
 /// One damped mode of a surface at the point struck.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Mode {
     /// The (damped) frequency of the ringing.
     pub frequency: Hz,
     /// The time for the ringing's envelope to decay by a factor `e`.
     pub decay: Seconds,
     /// Displacement per unit impulse, in metres per newton-second: `1 / (2π f m)` for a
-    /// mode of modal mass `m` at the point struck.
+    /// mode of modal mass `m` at the point struck. Its magnitude is the driving-point gain
+    /// the contact sees; its sign is the mode shape's at the point the vibration is felt
+    /// relative to the point struck (see the module documentation).
     pub gain: f64,
 }
 
@@ -133,7 +147,7 @@ impl ResonatorBank {
             modes: modes.to_vec(),
             scale: 1.0,
             pole: vec![zero; modes.len()],
-            gain: modes.iter().map(|m| m.gain).collect(),
+            gain: modes.iter().map(|m| m.gain.abs()).collect(),
             gain_pole: vec![zero; modes.len()],
             gain_slope: vec![zero; modes.len()],
             state: vec![zero; modes.len()],
@@ -153,9 +167,11 @@ impl ResonatorBank {
             let slope = Complex64::new(-1.0 / m.decay.0, std::f64::consts::TAU * f);
             let pole = (slope / fs).exp();
             self.pole[k] = pole;
-            self.gain_pole[k] = pole * m.gain;
+            // The contact sees the driving-point gain |g|; the output, the signed one.
+            let g = m.gain.abs();
+            self.gain_pole[k] = pole * g;
             self.gain_slope[k] = slope * m.gain;
-            self.first_sample += m.gain * pole.im;
+            self.first_sample += g * pole.im;
         }
     }
 
@@ -211,6 +227,37 @@ impl ResonatorBank {
     #[must_use]
     pub fn poles(&self) -> &[Complex64] {
         &self.pole
+    }
+
+    /// Reserves room for `modes` modes, so that [`assign_from`](Self::assign_from) a bank
+    /// of up to that many never allocates.
+    pub fn reserve(&mut self, modes: usize) {
+        let more = modes.saturating_sub(self.modes.len());
+        self.modes.reserve_exact(more);
+        self.pole.reserve_exact(more);
+        self.gain.reserve_exact(more);
+        self.gain_pole.reserve_exact(more);
+        self.gain_slope.reserve_exact(more);
+        self.state.reserve_exact(more);
+    }
+
+    /// Becomes a copy of `other`, state included, reusing this bank's buffers: no
+    /// allocation when `other` has no more modes than this bank has room for (see
+    /// [`reserve`](Self::reserve)).
+    pub fn assign_from(&mut self, other: &ResonatorBank) {
+        fn copy<T: Copy>(to: &mut Vec<T>, from: &[T]) {
+            to.clear();
+            to.extend_from_slice(from);
+        }
+        self.rate = other.rate;
+        self.scale = other.scale;
+        self.first_sample = other.first_sample;
+        copy(&mut self.modes, &other.modes);
+        copy(&mut self.pole, &other.pole);
+        copy(&mut self.gain, &other.gain);
+        copy(&mut self.gain_pole, &other.gain_pole);
+        copy(&mut self.gain_slope, &other.gain_slope);
+        copy(&mut self.state, &other.state);
     }
 
     /// Brings the bank to rest.
@@ -286,7 +333,7 @@ impl ResonatorBank {
             .state
             .iter()
             .zip(&self.gain_slope)
-            .map(|(z, gs)| gs.im * z.norm_sqr())
+            .map(|(z, gs)| gs.im.abs() * z.norm_sqr())
             .sum::<f64>()
     }
 

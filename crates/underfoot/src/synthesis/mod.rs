@@ -8,4 +8,4 @@ pub mod modal;
 pub mod voice;
 
 pub use modal::{ModalError, ModalFilter, Mode};
-pub use voice::{PreparedMaterial, Voice, VoiceConfig, VoiceError};
+pub use voice::{PreparedMaterial, SynthModel, Voice, VoiceConfig, VoiceError};

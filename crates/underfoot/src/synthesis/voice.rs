@@ -50,6 +50,7 @@ use num_complex::Complex64;
 use super::modal::{ModalError, ModalFilter};
 use crate::force::drive::DriveKind;
 use crate::material::MaterialModel;
+use crate::physical::Ground;
 use crate::signal::noise::SplitMix64;
 use crate::signal::{Sos, butterworth};
 use crate::units::{Hz, SampleRate, Seconds};
@@ -79,6 +80,20 @@ pub struct VoiceConfig {
     pub regularisation: f64,
     /// Rounds of the magnitude-only residue solve (default 10).
     pub magnitude_iterations: usize,
+    /// Which model plays: the fitted filter (default) or the calibrated physical model.
+    pub model: SynthModel,
+}
+
+/// Which of a material's models the engine plays.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SynthModel {
+    /// The fitted IIR filter, perturbed at every step ([`Voice`]).
+    #[default]
+    Iir,
+    /// The physical model calibrated from the same recordings
+    /// ([`crate::physical::Ground`]): one Hunt-Crossley impact per step on a solid, a
+    /// Poisson stream of micro-impacts driven by the loading rate on an aggregate.
+    Physical,
 }
 
 impl Default for VoiceConfig {
@@ -91,6 +106,7 @@ impl Default for VoiceConfig {
             fit_points: 256,
             regularisation: 0.0,
             magnitude_iterations: 40,
+            model: SynthModel::Iir,
         }
     }
 }
@@ -120,6 +136,20 @@ pub enum VoiceError {
         name: String,
         /// How many.
         modes: usize,
+    },
+    /// The physical model was asked for and the material has none.
+    #[error("material {name:?} has no physical model (refit it with `underfoot fit`)")]
+    NoPhysicalModel {
+        /// The material.
+        name: String,
+    },
+    /// The material's physical model cannot run at this rate.
+    #[error("material {name:?}: physical model: {source}")]
+    Physical {
+        /// The material.
+        name: String,
+        /// Why.
+        source: crate::physical::PhysicalError,
     },
     /// A post-filter setting does not fit the rate.
     #[error("material {name:?}: post filter: {reason}")]
@@ -157,7 +187,7 @@ impl Section {
 }
 
 /// A material ready for one audio rate. Built off the audio thread; a [`Voice`] copies it.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct PreparedMaterial {
     /// The material's name.
     pub name: String,
@@ -170,6 +200,8 @@ pub struct PreparedMaterial {
     /// Gain per drive ([`DriveKind::index`]) that makes a nominal step reproduce the
     /// recorded level.
     pub drive_gain: [f32; DriveKind::COUNT],
+    /// The physical model at the audio rate, when [`VoiceConfig::model`] asks for it.
+    pub ground: Option<Ground>,
     modes: usize,
     pole_re: [f32; MAX_MODES],
     pole_im: [f32; MAX_MODES],
@@ -179,6 +211,9 @@ pub struct PreparedMaterial {
     sections: [Section; MAX_POST_SECTIONS],
     section_count: usize,
 }
+
+/// The scratch block of a physical model's runtime; longer blocks run in pieces.
+const GROUND_BLOCK: usize = 256;
 
 impl PreparedMaterial {
     /// Prepares `model` for playback at `rate`. Every drive's gain is 1 until
@@ -267,10 +302,27 @@ impl PreparedMaterial {
                 })?;
         }
 
+        let ground = match config.model {
+            SynthModel::Iir => None,
+            SynthModel::Physical => {
+                let physical = model
+                    .physical
+                    .as_ref()
+                    .ok_or_else(|| VoiceError::NoPhysicalModel { name: name.clone() })?;
+                let ground = Ground::new(physical, rate, 0, GROUND_BLOCK).map_err(|source| {
+                    VoiceError::Physical {
+                        name: name.clone(),
+                        source,
+                    }
+                })?;
+                Some(ground)
+            }
+        };
         let mut prepared = Self {
             name,
             limited_modes,
             drive_gain: [1.0; DriveKind::COUNT],
+            ground,
             modes: modal.modes.len(),
             pole_re: [0.0; MAX_MODES],
             pole_im: [0.0; MAX_MODES],
