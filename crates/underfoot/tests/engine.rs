@@ -4,7 +4,7 @@
 use underfoot::engine::{self, Controller, Engine, EngineConfig, Event, MaterialBank, TimedEvent};
 use underfoot::force::SensorReading;
 use underfoot::material::builtin::builtin;
-use underfoot::synthesis::VoiceConfig;
+use underfoot::synthesis::{SynthModel, VoiceConfig};
 use underfoot::units::{Newtons, SampleRate};
 
 const RATE: SampleRate = SampleRate(48_000);
@@ -15,10 +15,17 @@ fn nominal_step() -> Vec<f64> {
 }
 
 fn bank() -> MaterialBank {
+    bank_for(SynthModel::Iir)
+}
+
+fn bank_for(model: SynthModel) -> MaterialBank {
     MaterialBank::prepare(
         builtin(),
         RATE,
-        &VoiceConfig::default(),
+        &VoiceConfig {
+            model,
+            ..VoiceConfig::default()
+        },
         &nominal_step(),
         Newtons::weight_of(70.0),
     )
@@ -26,7 +33,11 @@ fn bank() -> MaterialBank {
 }
 
 fn engine_with(config: &EngineConfig, material: &str) -> (Controller, Engine) {
-    let bank = bank();
+    engine_for(config, material, SynthModel::Iir)
+}
+
+fn engine_for(config: &EngineConfig, material: &str, model: SynthModel) -> (Controller, Engine) {
+    let bank = bank_for(model);
     let slot = bank.slot(material).unwrap();
     let initial = vec![slot; config.channels];
     engine::build(config, bank, &initial).unwrap()
@@ -72,7 +83,18 @@ fn render(
     block: usize,
     frames: usize,
 ) -> Vec<f32> {
-    let (mut ctl, mut eng) = engine_with(config, material);
+    render_model(config, material, events, block, frames, SynthModel::Iir)
+}
+
+fn render_model(
+    config: &EngineConfig,
+    material: &str,
+    events: &[TimedEvent],
+    block: usize,
+    frames: usize,
+    model: SynthModel,
+) -> Vec<f32> {
+    let (mut ctl, mut eng) = engine_for(config, material, model);
     let dc = config.channels;
     let mut out = vec![0.0; frames * dc];
     let mut next = 0;
@@ -107,6 +129,36 @@ fn output_is_identical_for_blocks_of_1_7_64_and_512_frames() {
             let out = render(&config, "gravel", &events, block, frames);
             assert!(out == reference, "{drive}: block {block} differs");
         }
+    }
+}
+
+#[test]
+fn the_physical_model_is_block_size_invariant_too() {
+    // An aggregate (gravel: micro-impacts at a rate following the loading) and a solid
+    // (hard: one impact per strike), with a material switch between them mid-walk.
+    let config = EngineConfig {
+        channels: 2,
+        ..EngineConfig::default()
+    };
+    let frames = 48_000;
+    let mut events = walk_events(2, 1.0);
+    let hard = bank_for(SynthModel::Physical).slot("hard").unwrap();
+    events.push(TimedEvent::at(
+        30_000,
+        Event::Material {
+            channel: 1,
+            slot: hard,
+        },
+    ));
+    events.sort_by_key(|e| e.at);
+    let reference = render_model(&config, "gravel", &events, 512, frames, SynthModel::Physical);
+    let energy: f64 = reference.iter().map(|v| f64::from(*v).powi(2)).sum();
+    assert!(energy > 1e-6, "the physical walk is audible ({energy})");
+    let iir = render(&config, "gravel", &events, 512, frames);
+    assert!(iir != reference, "the physical model is not the filter");
+    for block in [1, 7, 64] {
+        let out = render_model(&config, "gravel", &events, block, frames, SynthModel::Physical);
+        assert!(out == reference, "block {block} differs");
     }
 }
 

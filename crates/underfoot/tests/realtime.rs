@@ -15,7 +15,7 @@ use underfoot::force::SensorReading;
 use underfoot::force::gait::nominal_step;
 use underfoot::material::builtin::builtin;
 use underfoot::physical::{Aggregate, AggregateParams, Mode};
-use underfoot::synthesis::{PreparedMaterial, VoiceConfig};
+use underfoot::synthesis::{PreparedMaterial, SynthModel, VoiceConfig};
 use underfoot::units::{Decibels, Hz, Newtons, SampleRate, Seconds};
 
 struct Counting;
@@ -72,22 +72,26 @@ fn rendering_never_allocates_or_frees() {
     let rate = SampleRate(48_000);
     let weight = Newtons::weight_of(70.0);
     let step = nominal_step(70.0, 1.8, rate.hz());
-    for drive in ["impulse", "force", "force-rate"] {
+    for (drive, model) in [
+        ("impulse", SynthModel::Iir),
+        ("force", SynthModel::Iir),
+        ("force-rate", SynthModel::Iir),
+        ("impulse", SynthModel::Physical),
+    ] {
+        let voice = VoiceConfig {
+            model,
+            ..VoiceConfig::default()
+        };
         let config = EngineConfig {
             channels: 4,
             drive: drive.parse().unwrap(),
             gain: Decibels(30.0), // so that the limiter works too
             ..EngineConfig::default()
         };
-        let bank =
-            MaterialBank::prepare(builtin(), rate, &VoiceConfig::default(), &step, weight).unwrap();
+        let bank = MaterialBank::prepare(builtin(), rate, &voice, &step, weight).unwrap();
         let slots: Vec<u16> = (0..4).map(|c| c as u16).collect();
-        let replacement = PreparedMaterial::prepare(
-            builtin().get("snow").unwrap(),
-            rate,
-            &VoiceConfig::default(),
-        )
-        .unwrap();
+        let replacement =
+            PreparedMaterial::prepare(builtin().get("snow").unwrap(), rate, &voice).unwrap();
         let (mut ctl, mut eng) = engine::build(&config, bank, &slots).unwrap();
         let mut out = vec![0.0f32; 512 * 6];
         let mut replacement = Some(replacement);
@@ -136,7 +140,7 @@ fn rendering_never_allocates_or_frees() {
             let frames = if block % 3 == 0 { 480 } else { 256 };
             let buf = &mut out[..frames * 6];
             let n = allocations_in(|| eng.process(buf, 6));
-            assert_eq!(n, 0, "{drive}: block {block} allocated {n} times");
+            assert_eq!(n, 0, "{drive}/{model:?}: block {block} allocated {n} times");
             frame += frames as u64;
             ctl.collect();
         }

@@ -9,10 +9,18 @@ use underfoot::engine::{EngineConfig, MaterialBank};
 use underfoot::force::drive::DriveKind;
 use underfoot::force::gait::nominal_step;
 use underfoot::material::Library;
-use underfoot::synthesis::VoiceConfig;
+use underfoot::synthesis::{SynthModel, VoiceConfig};
 use underfoot::units::{Decibels, Hz, Newtons, SampleRate};
 
 use crate::commands::library::open;
+
+fn parse_model(s: &str) -> Result<SynthModel, String> {
+    match s {
+        "iir" => Ok(SynthModel::Iir),
+        "physical" => Ok(SynthModel::Physical),
+        _ => Err(format!("{s:?}: expected iir or physical")),
+    }
+}
 
 /// Synthesis settings.
 #[derive(Debug, Clone, Args)]
@@ -24,6 +32,10 @@ pub struct SynthArgs {
     /// recorded strikes), force, or force-rate (the tile paper's v_F).
     #[arg(long, default_value = "impulse", value_name = "KIND")]
     pub drive: DriveKind,
+    /// Which model plays: iir (the fitted filter) or physical (the calibrated
+    /// Hunt-Crossley impacts and aggregate of the material's `physical` entry).
+    #[arg(long, default_value = "iir", value_name = "MODEL", value_parser = parse_model)]
+    pub model: SynthModel,
     /// Output sample rate.
     #[arg(long, default_value_t = 48_000, value_name = "HZ")]
     pub rate: u32,
@@ -91,6 +103,7 @@ impl SynthArgs {
         let weight = Newtons::weight_of(self.weight_kg);
         let voice = VoiceConfig {
             lowpass_order: self.lowpass_order,
+            model: self.model,
             ..VoiceConfig::default()
         };
         let bank = MaterialBank::prepare(

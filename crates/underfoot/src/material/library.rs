@@ -363,6 +363,9 @@ impl Library {
 /// `filter.sos[1]: unstable section: pole radius 1.02 (must be < 1)`.
 pub fn validate_model(m: &MaterialModel) -> Result<(), String> {
     validate_name(&m.name)?;
+    if let Some(p) = &m.physical {
+        p.validate().map_err(|e| format!("physical model: {e}"))?;
+    }
     if m.sample_rate.0 == 0 {
         return Err("sample_rate is 0".to_string());
     }

@@ -121,6 +121,9 @@ const REST_ENERGY: f64 = 1e-12;
 /// numerically (see the module doc) and is silenced.
 const RUNAWAY: f64 = 4.0;
 
+/// Samples between the rest and runaway checks of the voices.
+const CHECK_EVERY: usize = 64;
+
 /// The parameters of an aggregate.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AggregateParams {
@@ -190,8 +193,8 @@ impl Voice {
 pub struct Aggregate {
     rate: SampleRate,
     period: f64,
-    /// `-2 T / τ_max`: the log of the slowest energy decay per sample.
-    energy_decay: f64,
+    /// The slowest energy decay over [`CHECK_EVERY`] samples, `e^{-2 T_c / τ_max}`.
+    check_decay: f64,
     mass: f64,
     rms_speed: f64,
     /// `ln(1 + spread)`: the half-width of the log-size band.
@@ -204,6 +207,9 @@ pub struct Aggregate {
     /// The hazard still to accrue before the next event (`E` minus what has accrued).
     to_go: f64,
     events: u64,
+    /// Samples rendered: voices are checked for rest and runaway when it passes a
+    /// multiple of [`CHECK_EVERY`], so the checks never depend on the block size.
+    clock: u64,
     /// Voices silenced by the runaway safeguard.
     runaways: u64,
 }
@@ -216,7 +222,7 @@ impl Aggregate {
     /// [`ResonatorBank::retune`]).
     ///
     /// # Errors
-    /// A zero rate; modes [`ResonatorBank::new`] rejects, or with a negative gain; hammer
+    /// A zero rate; modes [`ResonatorBank::new`] rejects,; hammer
     /// parameters [`Impact::new`] rejects; an RMS speed that is negative or not finite; a
     /// size spread outside `[0, 10]`; a pool outside `1..=64`.
     pub fn new(
@@ -311,7 +317,7 @@ impl Aggregate {
         Ok(Self {
             rate,
             period: 1.0 / rate.hz(),
-            energy_decay: -2.0 / (slowest * rate.hz()),
+            check_decay: (-2.0 * CHECK_EVERY as f64 / (slowest * rate.hz())).exp(),
             mass: params.impact.mass,
             rms_speed: rms,
             log_spread: spread.ln_1p(),
@@ -320,6 +326,7 @@ impl Aggregate {
             rng,
             to_go,
             events: 0,
+            clock: 0,
             runaways: 0,
         })
     }
@@ -331,7 +338,7 @@ impl Aggregate {
     pub fn assign_from(&mut self, other: &Aggregate) {
         self.rate = other.rate;
         self.period = other.period;
-        self.energy_decay = other.energy_decay;
+        self.check_decay = other.check_decay;
         self.mass = other.mass;
         self.rms_speed = other.rms_speed;
         self.log_spread = other.log_spread;
@@ -442,17 +449,35 @@ impl Aggregate {
 
     /// Adds the active voices over `out`, then rests those that have died away.
     fn render(&mut self, out: &mut [f32]) {
-        if out.is_empty() {
-            return;
+        let mut rest = out;
+        while !rest.is_empty() {
+            let due = CHECK_EVERY - (self.clock % CHECK_EVERY as u64) as usize;
+            let (head, tail) = rest.split_at_mut(rest.len().min(due));
+            for v in self.voices[..self.pool].iter_mut().filter(|v| v.active) {
+                v.impact.process_add(head);
+            }
+            self.clock += head.len() as u64;
+            let on_clock = self.clock % CHECK_EVERY as u64 == 0;
+            // A blown-up voice is caught at once rather than at the next check.
+            if on_clock || head.iter().any(|o| !o.is_finite()) {
+                self.check(head, on_clock);
+            }
+            rest = tail;
         }
-        let decay = (self.energy_decay * out.len() as f64).exp();
+    }
+
+    /// Rests the voices that have faded (on the clock only) and silences runaways (see the
+    /// module documentation); `last` is the stretch just rendered.
+    fn check(&mut self, last: &mut [f32], on_clock: bool) {
         let mut runaway = false;
         for v in self.voices[..self.pool].iter_mut().filter(|v| v.active) {
-            v.impact.process_add(out);
             let energy = v.energy();
-            v.peak = v.peak.max(energy);
-            v.budget *= decay;
-            let resting = !v.impact.is_striking() && energy <= REST_ENERGY * v.peak;
+            if on_clock {
+                v.peak = v.peak.max(energy);
+                v.budget *= self.check_decay;
+            }
+            let resting =
+                on_clock && !v.impact.is_striking() && energy <= REST_ENERGY * v.peak;
             // Written so that a NaN energy counts as a runaway.
             let bounded = energy <= RUNAWAY * v.budget;
             runaway |= !bounded;
@@ -465,7 +490,7 @@ impl Aggregate {
             }
         }
         if runaway {
-            for o in out.iter_mut().filter(|o| !o.is_finite()) {
+            for o in last.iter_mut().filter(|o| !o.is_finite()) {
                 *o = 0.0;
             }
         }

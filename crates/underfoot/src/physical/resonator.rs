@@ -95,8 +95,6 @@ pub struct ResonatorBank {
     /// The factor applied to every frequency of `modes` (see [`ResonatorBank::retune`]).
     scale: f64,
     pole: Vec<Complex64>,
-    /// `p_k^2`, for two samples at once in the free loop.
-    pole_sq: Vec<Complex64>,
     /// `g_k`, to read the displacement from the state.
     gain: Vec<f64>,
     /// `g_k p_k`: the displacement one sample ahead, from the state before the input.
@@ -149,7 +147,6 @@ impl ResonatorBank {
             modes: modes.to_vec(),
             scale: 1.0,
             pole: vec![zero; modes.len()],
-            pole_sq: vec![zero; modes.len()],
             gain: modes.iter().map(|m| m.gain.abs()).collect(),
             gain_pole: vec![zero; modes.len()],
             gain_slope: vec![zero; modes.len()],
@@ -170,7 +167,6 @@ impl ResonatorBank {
             let slope = Complex64::new(-1.0 / m.decay.0, std::f64::consts::TAU * f);
             let pole = (slope / fs).exp();
             self.pole[k] = pole;
-            self.pole_sq[k] = pole * pole;
             // The contact sees the driving-point gain |g|; the output, the signed one.
             let g = m.gain.abs();
             self.gain_pole[k] = pole * g;
@@ -239,7 +235,6 @@ impl ResonatorBank {
         let more = modes.saturating_sub(self.modes.len());
         self.modes.reserve_exact(more);
         self.pole.reserve_exact(more);
-        self.pole_sq.reserve_exact(more);
         self.gain.reserve_exact(more);
         self.gain_pole.reserve_exact(more);
         self.gain_slope.reserve_exact(more);
@@ -259,7 +254,6 @@ impl ResonatorBank {
         self.first_sample = other.first_sample;
         copy(&mut self.modes, &other.modes);
         copy(&mut self.pole, &other.pole);
-        copy(&mut self.pole_sq, &other.pole_sq);
         copy(&mut self.gain, &other.gain);
         copy(&mut self.gain_pole, &other.gain_pole);
         copy(&mut self.gain_slope, &other.gain_slope);
@@ -366,47 +360,28 @@ impl ResonatorBank {
     /// Rings freely over `out`, adding the velocity of each sample to it (as
     /// [`velocity`](Self::velocity) then `tick(0.0)`, sample by sample).
     pub(crate) fn add_free_velocity(&mut self, out: &mut [f32]) {
-        // Two samples per pass, both from the state at the first (`z p` and `z p^2`):
-        // the state's recursion, the loop's critical path, then takes one complex
-        // multiply per two samples. Modes go four at a time into separate partial sums so
-        // that each sample's sum is not one long chain of additions either.
+        // Modes go four at a time into separate partial sums, so that a sample's sum is
+        // not one long chain of additions. Every sample is computed the same way wherever
+        // a block starts or ends, which keeps the engine's output independent of its
+        // block size, bit for bit.
         let split = self.state.len() / LANES * LANES;
         let (state, state_tail) = self.state.split_at_mut(split);
         let (pole, pole_tail) = self.pole.split_at(split);
-        let (pole_sq, pole_sq_tail) = self.pole_sq.split_at(split);
         let (slope, slope_tail) = self.gain_slope.split_at(split);
-        let mut pairs = out.chunks_exact_mut(2);
-        for pair in &mut pairs {
-            let (mut a, mut b) = ([0.0; LANES], [0.0; LANES]);
-            for (((z, p), p2), gs) in state
+        for o in out.iter_mut() {
+            let mut lanes = [0.0; LANES];
+            for ((z, p), gs) in state
                 .chunks_exact_mut(LANES)
                 .zip(pole.chunks_exact(LANES))
-                .zip(pole_sq.chunks_exact(LANES))
                 .zip(slope.chunks_exact(LANES))
             {
                 for l in 0..LANES {
-                    let (x, y) = free_pair(&mut z[l], p[l], p2[l], gs[l]);
-                    a[l] += x;
-                    b[l] += y;
+                    lanes[l] += gs[l].re * z[l].im + gs[l].im * z[l].re;
+                    z[l] *= p[l];
                 }
             }
-            let (mut x, mut y) = ((a[0] + a[1]) + (a[2] + a[3]), (b[0] + b[1]) + (b[2] + b[3]));
-            for (((z, p), p2), gs) in state_tail
-                .iter_mut()
-                .zip(pole_tail)
-                .zip(pole_sq_tail)
-                .zip(slope_tail)
-            {
-                let (u, v) = free_pair(z, *p, *p2, *gs);
-                x += u;
-                y += v;
-            }
-            pair[0] += x as f32;
-            pair[1] += y as f32;
-        }
-        for o in pairs.into_remainder() {
-            let mut velocity = 0.0;
-            for ((z, p), gs) in self.state.iter_mut().zip(&self.pole).zip(&self.gain_slope) {
+            let mut velocity = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+            for ((z, p), gs) in state_tail.iter_mut().zip(pole_tail).zip(slope_tail) {
                 velocity += gs.re * z.im + gs.im * z.re;
                 *z *= p;
             }
@@ -488,17 +463,6 @@ impl ResonatorBank {
         };
         Ok(Sos::new(sections))
     }
-}
-
-/// One mode's velocity terms at this sample and the next (`Im(g s z)`, `Im(g s z p)`),
-/// advancing its state by two samples.
-#[inline(always)]
-fn free_pair(z: &mut Complex64, p: Complex64, p2: Complex64, gs: Complex64) -> (f64, f64) {
-    let next = *z * p;
-    let now = gs.re * z.im + gs.im * z.re;
-    let then = gs.re * next.im + gs.im * next.re;
-    *z *= p2;
-    (now, then)
 }
 
 #[cfg(test)]

@@ -1,0 +1,230 @@
+//! The physical model's calibration: oracles on signals the tests make, and
+//! calibrate-then-synthesise on every real material.
+//!
+//! The real-data test needs `../shared/data/footsteps` (skipped with a note when absent,
+//! unless `UNDERFOOT_REQUIRE_DATA=1`).
+
+mod common;
+
+use underfoot::fit::metrics::lsd_db;
+use underfoot::material::builtin::builtin;
+use underfoot::material::library::Library;
+use underfoot::physical::calibrate::{analyse_render, fit_rate_mapping, hammer_for};
+use underfoot::physical::{
+    CalibrationConfig, Ground, GroundKind, Impact, KindChoice, Surface, calibrate,
+};
+use underfoot::recording::{self, Recording};
+use underfoot::signal::noise::SplitMix64;
+use underfoot::units::{SampleRate, Seconds};
+
+#[test]
+fn calibrate_then_synthesise_every_real_material_within_3_db() {
+    let Some(root) = common::footsteps_dir() else {
+        return;
+    };
+    let cfg = CalibrationConfig::default();
+    let mut worst: f64 = 0.0;
+    for (name, files) in common::footsteps_by_material(&root) {
+        let recordings: Vec<Recording> = files
+            .iter()
+            .map(|f| recording::read(f, None).expect("readable recording"))
+            .collect();
+        let model = calibrate(&recordings, &cfg).expect("calibrates");
+        // Score a render the calibration has not seen (another seed).
+        let grid = cfg.analysis.band.log_grid(96);
+        let measured = underfoot::analysis::measure(&recordings, &cfg.analysis)
+            .expect("measurable")
+            .on_grid(&grid);
+        let got = analyse_render(&model, &cfg, &grid, 0xDEC0DE).expect("render analyses");
+        let lsd = lsd_db(&measured, &got);
+        eprintln!(
+            "{name}: {} with {} modes, LSD {lsd:.2} dB (calibration {:.2} dB)",
+            model.kind.name(),
+            model.modes.len(),
+            model.record.lsd_db
+        );
+        assert!(lsd <= 3.0, "{name}: LSD {lsd:.2} dB");
+        worst = worst.max(lsd);
+    }
+    eprintln!("worst LSD {worst:.2} dB");
+}
+
+/// Strikes on a surface of known modes, as a recording at 48 kHz.
+fn struck_floor(modes: &[(f64, f64, f64)], strikes: usize, seed: u64) -> Recording {
+    let rate = SampleRate(48_000);
+    let fs = rate.hz();
+    let mut noise = SplitMix64::new(seed);
+    let len = (0.8 * fs) as usize * strikes;
+    let mut samples: Vec<f64> = (0..len).map(|_| 1e-5 * noise.symmetric()).collect();
+    for s in 0..strikes {
+        let start = (0.1 * fs) as usize + s * (0.8 * fs) as usize;
+        let level = 0.8 + 0.4 * noise.uniform();
+        for n in 0..(0.6 * fs) as usize {
+            let t = n as f64 / fs;
+            samples[start + n] += level
+                * modes
+                    .iter()
+                    .map(|&(f, tau, a)| {
+                        a * (-t / tau).exp() * (std::f64::consts::TAU * f * t).sin()
+                    })
+                    .sum::<f64>();
+        }
+    }
+    Recording {
+        name: format!("floor-{seed}.wav"),
+        rate,
+        samples,
+        sha256: String::new(),
+    }
+}
+
+#[test]
+fn a_struck_floor_is_a_solid_with_its_modes_and_its_spectrum() {
+    let truth = [(62.0, 0.06, 1.0), (145.0, 0.04, 0.6), (410.0, 0.025, 0.4)];
+    let recordings: Vec<Recording> = (0..3).map(|s| struck_floor(&truth, 2, s)).collect();
+    let cfg = CalibrationConfig::default();
+    let model = calibrate(&recordings, &cfg).expect("calibrates");
+    assert_eq!(model.kind, GroundKind::Solid, "{:?}", model.record);
+    // The calibrated surface rings where the floor does: its response (velocity per unit
+    // impulse, modes summed with their signs) peaks at each true mode.
+    let response = |f: f64| {
+        let s = num_complex::Complex64::new(0.0, std::f64::consts::TAU * f);
+        model
+            .modes
+            .iter()
+            .map(|m| {
+                let wd = std::f64::consts::TAU * m.frequency.0;
+                s * wd * m.gain / ((s + 1.0 / m.decay.0).powi(2) + wd * wd)
+            })
+            .sum::<num_complex::Complex64>()
+            .norm()
+    };
+    for (f, _, _) in truth {
+        let peak = (0..=40)
+            .map(|i| f * (0.8 + 0.01 * f64::from(i)))
+            .max_by(|a, b| response(*a).total_cmp(&response(*b)))
+            .expect("candidates");
+        assert!(
+            (peak / f - 1.0).abs() < 0.03,
+            "the response near {f} Hz peaks at {peak:.1} Hz"
+        );
+    }
+    assert!(
+        model.record.lsd_db < 3.0,
+        "LSD {:.2} dB",
+        model.record.lsd_db
+    );
+    assert_eq!(model.events_per_newton, 0.0);
+}
+
+#[test]
+fn the_kind_can_be_fixed_and_bad_settings_are_refused() {
+    let recordings = [struck_floor(&[(100.0, 0.05, 1.0)], 2, 9)];
+    let cfg = CalibrationConfig {
+        kind: KindChoice::Fixed(GroundKind::Aggregate),
+        ..CalibrationConfig::default()
+    };
+    let model = calibrate(&recordings, &cfg).expect("calibrates");
+    assert_eq!(model.kind, GroundKind::Aggregate);
+    assert!(model.events_per_newton > 0.0);
+    for bad in [
+        CalibrationConfig {
+            lpc_orders: vec![],
+            ..CalibrationConfig::default()
+        },
+        CalibrationConfig {
+            restitution: 1.5,
+            ..CalibrationConfig::default()
+        },
+        CalibrationConfig {
+            contact_time: Seconds(f64::NAN),
+            ..CalibrationConfig::default()
+        },
+    ] {
+        assert!(calibrate(&recordings, &bad).is_err());
+    }
+    assert!(calibrate(&[], &CalibrationConfig::default()).is_err());
+}
+
+#[test]
+fn the_hammer_has_the_contact_time_asked_for() {
+    for (mass, contact, speed) in [(0.005, 2.5e-4, 0.5), (0.5, 1e-3, 1.0), (2.0, 4e-3, 0.2)] {
+        let mut params = hammer_for(mass, Seconds(contact), speed, 0.999_999, 1.5);
+        params.damping = 0.0;
+        let rate = SampleRate(192_000);
+        let mut impact = Impact::new(params, Surface::Rigid, rate).expect("valid hammer");
+        let mut out = vec![0.0f32; rate.samples_in(Seconds(10.0 * contact))];
+        impact.process(&mut out);
+        let got = impact.contact_time().expect("the hammer left").0;
+        assert!(
+            (got / contact - 1.0).abs() < 0.01,
+            "asked {contact} s, got {got} s"
+        );
+    }
+}
+
+#[test]
+fn the_control_mapping_is_recovered_from_a_noisy_event_rate() {
+    let mut rng = SplitMix64::new(4);
+    let loading: Vec<f64> = (0..2000)
+        .map(|i| (3000.0 * (i as f64 / 300.0).sin()).max(0.0))
+        .collect();
+    let alpha = 0.037;
+    let rate: Vec<f64> = loading
+        .iter()
+        .map(|v| (alpha * v + 2.0 * rng.normal()).max(0.0))
+        .collect();
+    let got = fit_rate_mapping(&rate, &loading).expect("fits");
+    assert!((got / alpha - 1.0).abs() < 0.02, "{got}");
+    assert!(fit_rate_mapping(&rate[..10], &loading).is_err());
+    assert!(fit_rate_mapping(&[1.0], &[0.0]).is_err());
+    assert!(fit_rate_mapping(&[f64::NAN], &[1.0]).is_err());
+}
+
+#[test]
+fn every_builtin_material_has_a_valid_physical_model() {
+    for m in &builtin().materials {
+        let p = m.physical.as_ref().expect("built-in physical model");
+        p.validate().expect("valid");
+        assert!(p.record.lsd_db <= 3.0, "{}: {}", m.name, p.record.lsd_db);
+        Ground::new(p, SampleRate(48_000), 1, 64).expect("runs at 48 kHz");
+    }
+}
+
+#[test]
+fn a_broken_physical_model_in_a_library_file_is_refused() {
+    let mut lib = builtin().clone();
+    let model = lib.materials[0].physical.as_mut().expect("physical");
+    model.modes[0].decay = Seconds(-1.0);
+    let err = Library::from_json(&lib.to_json(), "test.json").expect_err("refused");
+    assert!(err.to_string().contains("physical"), "{err}");
+    let mut lib = builtin().clone();
+    lib.materials[0].physical.as_mut().expect("physical").voices = 0;
+    assert!(Library::from_json(&lib.to_json(), "test.json").is_err());
+}
+
+#[test]
+fn an_aggregate_sounds_only_while_the_foot_loads() {
+    let gravel = builtin().get("gravel").expect("gravel");
+    let p = gravel.physical.as_ref().expect("physical");
+    assert_eq!(p.kind, GroundKind::Aggregate);
+    let rate = SampleRate(48_000);
+    let mut ground = Ground::new(p, rate, 3, 64).expect("prepares");
+    let mut out = vec![0.0f32; 48_000];
+    // Unloading: nothing.
+    ground.process(&vec![0.0f32; 48_000], &mut out);
+    assert!(out.iter().all(|v| *v == 0.0));
+    assert_eq!(ground.events(), 0);
+    // Loading at 2 kN/s for 0.25 s: about α · 500 N events.
+    let mut loading = vec![0.0f32; 48_000];
+    loading[..12_000].fill(2000.0);
+    ground.process(&loading, &mut out);
+    let expected = p.events_per_newton * 500.0;
+    let got = ground.events() as f64;
+    assert!(
+        (got - expected).abs() < 4.0 * expected.sqrt() + 1.0,
+        "{got} events, {expected:.1} expected"
+    );
+    assert!(out.iter().any(|v| *v != 0.0));
+}
+
