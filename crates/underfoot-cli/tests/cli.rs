@@ -778,3 +778,82 @@ fn run_rejects_bad_inputs_and_outputs_clearly() {
     ]);
     assert!(assert_error(&o).contains("/dev/does-not-exist"));
 }
+
+/// The shared footstep recordings, or `None` (with a note) when they are absent and
+/// `UNDERFOOT_REQUIRE_DATA` is not `1`.
+fn footsteps_dir() -> Option<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/footsteps");
+    if dir.is_dir() {
+        return Some(dir);
+    }
+    assert!(
+        std::env::var("UNDERFOOT_REQUIRE_DATA")
+            .ok()
+            .is_none_or(|v| v != "1"),
+        "UNDERFOOT_REQUIRE_DATA=1 but the footstep recordings are not at {}",
+        dir.display()
+    );
+    eprintln!(
+        "note: skipping: footstep recordings not found at {}",
+        dir.display()
+    );
+    None
+}
+
+#[test]
+fn compare_prints_table_one_for_the_papers_five_materials() {
+    let Some(data) = footsteps_dir() else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let json = dir.path().join("table.json");
+    let plots = dir.path().join("fig4");
+    // The paper's broken stone, concrete, sand, earth and snow.
+    let pairs: Vec<String> = ["gravel", "hard", "sand", "dirt", "snow"]
+        .iter()
+        .map(|m| format!("{m}={}", data.join(m).display()))
+        .collect();
+    let mut args = vec![
+        "compare",
+        "--json",
+        json.to_str().unwrap(),
+        "--plot",
+        plots.to_str().unwrap(),
+    ];
+    args.extend(pairs.iter().map(String::as_str));
+    let o = run(&args);
+    assert_ok(&o);
+    let table = stdout(&o);
+    eprintln!("{table}");
+    assert_eq!(table.lines().count(), 6, "a header and five rows:\n{table}");
+    let parsed: serde_json::Value =
+        serde_json::from_str(&fs::read_to_string(&json).expect("json written")).expect("json");
+    let rows = parsed["materials"].as_array().expect("materials");
+    assert_eq!(rows.len(), 5);
+    for row in rows {
+        let name = row["name"].as_str().expect("name");
+        for model in ["iir", "physical"] {
+            let nrmse = row[model]["nrmse"].as_f64().expect("nrmse");
+            let lsd = row[model]["lsd_db"].as_f64().expect("lsd_db");
+            assert!(nrmse.is_finite() && nrmse >= 0.0, "{name} {model}");
+            assert!(
+                table.contains(&format!("{lsd:.2}")),
+                "{name} {model} in the table"
+            );
+        }
+        // The fitted filter is the closer of the two, as in the paper; both are close.
+        assert!(row["iir"]["lsd_db"].as_f64().unwrap() <= 1.0, "{name}");
+        assert!(row["physical"]["lsd_db"].as_f64().unwrap() <= 3.0, "{name}");
+        let svg = fs::read_to_string(plots.join(format!("{name}.svg"))).expect("plot");
+        assert!(
+            svg.contains("physical") && svg.contains("IIR"),
+            "{name}: legend"
+        );
+    }
+    // A folder without recordings is an error that names it.
+    let empty = dir.path().join("empty");
+    fs::create_dir(&empty).unwrap();
+    let arg = format!("x={}", empty.display());
+    let err = assert_error(&run(&["compare", &arg]));
+    assert!(err.contains("holds no recording"), "{err}");
+}

@@ -7,6 +7,10 @@
 //! - `voice/order-12 modes only`: the same without the post filter, to show its share.
 //! - `engine/64-frame block`: the whole engine (event handling, 16 channels walking,
 //!   limiter, fades) for one 64-frame block; against the block's 1.33 ms of real time.
+//!   `engine/64-frame block, 16 channels, physical` is the same with `--model physical`.
+//! - `model/<material> iir` against `model/<material> physical`: one second of a walk (a
+//!   nominal step every half second) through the material's IIR voice and its calibrated
+//!   physical model, for an aggregate (`gravel`) and a solid (`hard`).
 
 use std::hint::black_box;
 
@@ -16,8 +20,9 @@ use underfoot::force::SensorReading;
 use underfoot::force::drive::DriveKind;
 use underfoot::force::gait::nominal_step;
 use underfoot::material::builtin::builtin;
+use underfoot::physical::Ground;
 use underfoot::signal::noise::SplitMix64;
-use underfoot::synthesis::{PreparedMaterial, Voice, VoiceConfig};
+use underfoot::synthesis::{PreparedMaterial, SynthModel, Voice, VoiceConfig};
 use underfoot::units::{Newtons, SampleRate};
 
 const RATE: SampleRate = SampleRate(48_000);
@@ -62,13 +67,63 @@ fn voice(c: &mut Criterion) {
     group.finish();
 }
 
+fn models(c: &mut Criterion) {
+    // The loading rate of a nominal step every half second, and an impulse at each strike.
+    let step = nominal_step(70.0, 1.8, RATE.hz());
+    let mut loading = vec![0.0f32; 48_000];
+    let mut impulses = vec![0.0f32; 48_000];
+    for start in [0, 24_000] {
+        for (i, w) in step.windows(2).enumerate() {
+            if start + i + 1 < loading.len() {
+                loading[start + i + 1] = ((w[1] - w[0]) * RATE.hz()).max(0.0) as f32;
+            }
+        }
+        impulses[start] = 1.0;
+    }
+    let mut y = vec![0.0f32; 48_000];
+    let mut rng = SplitMix64::new(1);
+    let mut group = c.benchmark_group("model");
+    group.throughput(Throughput::Elements(loading.len() as u64));
+    for name in ["gravel", "hard"] {
+        let model = builtin().get(name).expect("built-in material");
+        let m = PreparedMaterial::prepare(model, RATE, &VoiceConfig::default()).unwrap();
+        let mut v = Voice::new();
+        v.load(&m, DriveKind::Impulse);
+        group.bench_function(format!("{name} iir"), |b| {
+            b.iter(|| {
+                v.perturb(&mut rng, 0.01);
+                black_box(v.process(black_box(&impulses), &mut y));
+            });
+        });
+        let physical = model.physical.as_ref().expect("built-in physical model");
+        let mut g = Ground::new(physical, RATE, 1, 256).unwrap();
+        group.bench_function(format!("{name} physical"), |b| {
+            b.iter(|| {
+                g.strike(1.0);
+                black_box(g.process(black_box(&loading), &mut y));
+                g.strike(1.0);
+            });
+        });
+    }
+    group.finish();
+}
+
 fn engine_block(c: &mut Criterion) {
+    for model in [SynthModel::Iir, SynthModel::Physical] {
+        engine_block_with(c, model);
+    }
+}
+
+fn engine_block_with(c: &mut Criterion, model: SynthModel) {
     let channels = 16;
     let weight = Newtons::weight_of(70.0);
     let bank = MaterialBank::prepare(
         builtin(),
         RATE,
-        &VoiceConfig::default(),
+        &VoiceConfig {
+            model,
+            ..VoiceConfig::default()
+        },
         &nominal_step(70.0, 1.8, RATE.hz()),
         weight,
     )
@@ -84,7 +139,11 @@ fn engine_block(c: &mut Criterion) {
     let mut block = 0u64;
     let mut group = c.benchmark_group("engine");
     group.throughput(Throughput::Elements(64));
-    group.bench_function("64-frame block, 16 channels", |b| {
+    let name = match model {
+        SynthModel::Iir => "64-frame block, 16 channels",
+        SynthModel::Physical => "64-frame block, 16 channels, physical",
+    };
+    group.bench_function(name, |b| {
         b.iter(|| {
             // A 500 Hz reading every 96 frames on every channel, a step every 0.5 s.
             if block % 3 == 0 {
@@ -104,5 +163,5 @@ fn engine_block(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, voice, engine_block);
+criterion_group!(benches, voice, models, engine_block);
 criterion_main!(benches);

@@ -12,7 +12,7 @@
 //! | analysis | [`analysis`] | the measured response of a material: RMS-averaged, 1/6-octave smoothed strike spectra |
 //! | fitting | [`fit`] | IIR fits to a measured response: Levi, vector fitting, damped Gauss-Newton, order search |
 //! | material models | [`material`] | the material model, the versioned library file, the built-in presets |
-//! | physical models | [`physical`] | a hammer striking a surface of damped modes: Hunt-Crossley contact, impulse-invariant modes; aggregates as Poisson micro-impacts |
+//! | physical models | [`physical`] | a hammer striking a surface of damped modes: Hunt-Crossley contact, impulse-invariant modes; aggregates as Poisson micro-impacts; calibration from recordings |
 //! | force | [`force`] | sensor readings, force tracks (CSV), the walking gait, heel strikes, the drive signal |
 //! | synthesis | [`synthesis`] | a material's modes at the audio rate; the voice with its per-step perturbation |
 //! | safety | [`safety`] | hard limiter, input watchdog, start/stop fades |

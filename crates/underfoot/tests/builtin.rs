@@ -60,5 +60,28 @@ fn builtin_library_is_current() {
                 preset.name
             );
         }
+        // The physical model is calibrated by the same fit, deterministically.
+        let (got, want) = (refit.physical.as_ref(), preset.physical.as_ref());
+        let (got, want) = (
+            got.expect("the refit calibrates a physical model"),
+            want.unwrap_or_else(|| panic!("{}: run scripts/refit-builtin", preset.name)),
+        );
+        assert_eq!(
+            got.kind, want.kind,
+            "{}: run scripts/refit-builtin",
+            preset.name
+        );
+        assert_eq!(
+            got.modes.len(),
+            want.modes.len(),
+            "{}: run scripts/refit-builtin",
+            preset.name
+        );
+        assert!(
+            (got.record.lsd_db - want.record.lsd_db).abs() < 0.05
+                && (got.output_gain / want.output_gain - 1.0).abs() < 1e-3,
+            "{}: physical model differs; run scripts/refit-builtin",
+            preset.name
+        );
     }
 }

@@ -151,13 +151,27 @@ fn the_physical_model_is_block_size_invariant_too() {
         },
     ));
     events.sort_by_key(|e| e.at);
-    let reference = render_model(&config, "gravel", &events, 512, frames, SynthModel::Physical);
+    let reference = render_model(
+        &config,
+        "gravel",
+        &events,
+        512,
+        frames,
+        SynthModel::Physical,
+    );
     let energy: f64 = reference.iter().map(|v| f64::from(*v).powi(2)).sum();
     assert!(energy > 1e-6, "the physical walk is audible ({energy})");
     let iir = render(&config, "gravel", &events, 512, frames);
     assert!(iir != reference, "the physical model is not the filter");
     for block in [1, 7, 64] {
-        let out = render_model(&config, "gravel", &events, block, frames, SynthModel::Physical);
+        let out = render_model(
+            &config,
+            "gravel",
+            &events,
+            block,
+            frames,
+            SynthModel::Physical,
+        );
         assert!(out == reference, "block {block} differs");
     }
 }

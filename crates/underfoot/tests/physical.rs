@@ -227,4 +227,3 @@ fn an_aggregate_sounds_only_while_the_foot_loads() {
     );
     assert!(out.iter().any(|v| *v != 0.0));
 }
-

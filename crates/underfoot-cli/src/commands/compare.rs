@@ -2,7 +2,7 @@
 //!
 //! Each `NAME=FOLDER` is fitted twice from the recordings in the folder: the IIR filter
 //! (`underfoot fit`) and the physical model, calibrated with no hand tuning
-//! ([`underfoot::physical::calibrate`]). Both are scored against the measured response
+//! ([`underfoot::physical::calibrate()`]). Both are scored against the measured response
 //! on the fit's grid of 96 log-spaced frequencies: the IIR filter by its magnitude, the
 //! physical model by rendering four nominal steps with a seed other than the
 //! calibration's and analysing the render exactly as the recordings were. The table goes
@@ -97,14 +97,11 @@ fn recordings_in(folder: &Path) -> anyhow::Result<Vec<PathBuf>> {
         let path = entry
             .with_context(|| format!("reading folder {}", folder.display()))?
             .path();
-        let audio = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .is_some_and(|e| {
-                ["wav", "flac", "ogg", "oga"]
-                    .iter()
-                    .any(|x| e.eq_ignore_ascii_case(x))
-            });
+        let audio = path.extension().and_then(|e| e.to_str()).is_some_and(|e| {
+            ["wav", "flac", "ogg", "oga"]
+                .iter()
+                .any(|x| e.eq_ignore_ascii_case(x))
+        });
         if audio && path.is_file() {
             files.push(path);
         }
@@ -124,7 +121,11 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
     if let Some(json) = &args.json {
         let dir = json.parent().filter(|d| !d.as_os_str().is_empty());
         if let Some(d) = dir.filter(|d| !d.is_dir()) {
-            bail!("--json {}: directory {} does not exist", json.display(), d.display());
+            bail!(
+                "--json {}: directory {} does not exist",
+                json.display(),
+                d.display()
+            );
         }
     }
     if let Some(dir) = &args.plot {
@@ -147,7 +148,10 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
         let model = build_material(name, &recordings, &cfg, &mut |_| {})
             .with_context(|| format!("fitting {name} from {}", folder.display()))?;
         let Some(physical) = &model.physical else {
-            bail!("{name}: the physical model could not be calibrated from {}", folder.display());
+            bail!(
+                "{name}: the physical model could not be calibrated from {}",
+                folder.display()
+            );
         };
         // Score on a render the calibration has not seen.
         let grid: Vec<Hz> = model.fit.grid_hz.iter().map(|f| Hz(*f)).collect();

@@ -242,6 +242,14 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
                 "(last: order {order}, LSD {lsd_db:.2} dB, NRMSE {nrmse:.4})"
             ));
         }
+        Progress::PhysicalFailed { reason } => {
+            fitting.suspend(|| {
+                eprintln!(
+                    "underfoot: warning: no physical model for {:?} (the filter is kept): {reason}",
+                    args.material
+                );
+            });
+        }
         _ => {}
     })
     .with_context(|| format!("fitting material {:?}", args.material))?;
@@ -250,8 +258,16 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
 
     let replaced = library.upsert(model.clone()).is_some();
     library.save(&args.out)?;
+    let physical = model.physical.as_ref().map_or(String::new(), |p| {
+        format!(
+            "; physical: {}, {} modes, LSD {:.2} dB",
+            p.kind.name(),
+            p.modes.len(),
+            p.record.lsd_db
+        )
+    });
     emit(&format!(
-        "{}: order {}, NRMSE {:.4}, LSD {:.2} dB, {} strikes, {:.0} ms -> {} ({})\n",
+        "{}: order {}, NRMSE {:.4}, LSD {:.2} dB, {} strikes{physical}, {:.0} ms -> {} ({})\n",
         model.name,
         model.order,
         model.fit.nrmse,

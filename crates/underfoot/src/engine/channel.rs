@@ -5,8 +5,8 @@ use crate::force::SensorReading;
 use crate::force::condition::ForceConditioner;
 use crate::force::drive::{DriveKind, Polarity};
 use crate::force::steps::StepDetector;
-use crate::safety::Watchdog;
 use crate::physical::Ground;
+use crate::safety::Watchdog;
 use crate::signal::noise::SplitMix64;
 use crate::synthesis::{PreparedMaterial, Voice};
 

@@ -83,25 +83,33 @@
 //! extremely damped contact, could compound that into a numerical runaway. So each voice
 //! keeps a budget, the kinetic energy its hammers brought (`½ m v^2` per strike), decayed
 //! at the slowest mode's rate `e^{-2t/τ_{max}}`; a voice found holding more than four
-//! times its budget is silenced (and any non-finite sample of that stretch zeroed). With
-//! sensible parameters it never triggers; it only keeps the output finite whatever the
-//! parameters.
+//! times its budget is silenced (and any non-finite sample of that stretch zeroed). The
+//! check runs every 64 samples of the aggregate's own clock, and at once on a non-finite
+//! output sample. With sensible parameters it never triggers; it only keeps the output
+//! finite whatever the parameters.
+//!
+//! # Block-size invariance
+//!
+//! Every sample is computed the same way wherever a block (or the stretch between two
+//! events) starts or ends, and the decisions that change the arithmetic (withdrawing a
+//! hammer, resting a voice) are taken on sample clocks (the strike's, every 16 samples;
+//! the aggregate's, every 64), never at block boundaries. The output is therefore the
+//! same, bit for bit, for any block size (the engine's tests check 1, 7, 64 and 512).
 //!
 //! # Cost
 //!
 //! Per sample and ringing voice whose hammer has left for good (almost all of the time:
 //! a rebounding grain is out of the surface's reach within a sample or two, see
-//! [`Impact`]): one complex multiply and two multiply-adds per mode, run two samples per
-//! pass (from `z p` and `z p^2`, halving the recursion's critical path) with the modes
-//! in four independent partial sums. While a hammer may still touch (a fraction of a
+//! [`Impact`]): one complex multiply and two multiply-adds per mode, with the modes in
+//! four independent partial sums. While a hammer may still touch (a fraction of a
 //! millisecond per event), the contact's bookkeeping and, in contact, a second pass over
 //! the modes and a scalar solve of a few iterations. Per event: the energy of every voice
 //! (`V K`) and a retune (`K` complex exponentials). A voice whose hammer has left and
 //! whose surface energy has fallen to `10^{-12}` (−120 dB) of the largest it held since
-//! its last strike is brought to rest and costs nothing until struck again; so at low
+//! its last check is brought to rest and costs nothing until struck again; so at low
 //! rates, or with short decays, the cost follows the events rather than the pool size.
 //! Measured (criterion, `benches/physical.rs`, four voices at 300 events/s, 48 kHz):
-//! about 28 M samples/s with 3 modes and 9.5 M samples/s with 16, on one core.
+//! about 22 M samples/s with 3 modes and 8 M samples/s with 16, on one core.
 
 use super::{Impact, ImpactParams, Mode, PhysicalError, ResonatorBank, Surface};
 use crate::signal::noise::SplitMix64;
@@ -476,8 +484,7 @@ impl Aggregate {
                 v.peak = v.peak.max(energy);
                 v.budget *= self.check_decay;
             }
-            let resting =
-                on_clock && !v.impact.is_striking() && energy <= REST_ENERGY * v.peak;
+            let resting = on_clock && !v.impact.is_striking() && energy <= REST_ENERGY * v.peak;
             // Written so that a NaN energy counts as a runaway.
             let bounded = energy <= RUNAWAY * v.budget;
             runaway |= !bounded;

@@ -19,10 +19,10 @@
 //! [`MAX_VOICES`] voices is reserved up front), so a material can change on the audio
 //! thread. Nothing after preparation allocates or panics.
 
+use super::PhysicalError;
 use super::aggregate::Aggregate;
 use super::calibrate::aggregate_params;
 use super::model::{GroundKind, MAX_MODES, MAX_VOICES, PhysicalModel};
-use super::PhysicalError;
 use crate::force::gait::nominal_step;
 use crate::units::SampleRate;
 
@@ -85,17 +85,18 @@ impl Ground {
             MAX_VOICES,
         )?;
         let fs = rate.hz();
-        let nominal = match model.kind {
-            GroundKind::Aggregate => {
-                let step = nominal_step(70.0, 1.8, fs);
-                std::iter::once(0.0)
-                    .chain(step.windows(2).map(|w| {
-                        (model.events_per_newton * ((w[1] - w[0]) * fs).max(0.0)) as f32
-                    }))
-                    .collect()
-            }
-            GroundKind::Solid => Vec::new(),
-        };
+        let nominal =
+            match model.kind {
+                GroundKind::Aggregate => {
+                    let step = nominal_step(70.0, 1.8, fs);
+                    std::iter::once(0.0)
+                        .chain(step.windows(2).map(|w| {
+                            (model.events_per_newton * ((w[1] - w[0]) * fs).max(0.0)) as f32
+                        }))
+                        .collect()
+                }
+                GroundKind::Solid => Vec::new(),
+            };
         let nominal_cap = nominal_step(70.0, 1.8, fs).len().max(1);
         let mut nominal_buf = Vec::with_capacity(nominal_cap.max(nominal.len()));
         nominal_buf.extend_from_slice(&nominal);

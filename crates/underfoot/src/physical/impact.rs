@@ -886,6 +886,10 @@ mod tests {
         let (minus, f_minus, t_minus) = run(-5e-4);
         assert_eq!(f_plus, f_minus);
         assert_eq!(t_plus, t_minus);
-        assert!(plus.iter().zip(&minus).any(|(p, m)| (p - m).abs() > 1e-3 * p.abs()));
+        assert!(
+            plus.iter()
+                .zip(&minus)
+                .any(|(p, m)| (p - m).abs() > 1e-3 * p.abs())
+        );
     }
 }

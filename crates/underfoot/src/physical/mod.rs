@@ -12,7 +12,7 @@
 //!   surface, integrated by an energy-consistent implicit step;
 //! - [`aggregate`]: gravel, snow or sand as a Poisson stream of micro-impacts of random
 //!   energy and fragment size, at a rate `N(t)` the caller drives, on a pool of impacts;
-//! - [`calibrate`]: all of the above identified from recordings, with no hand tuning;
+//! - [`mod@calibrate`]: all of the above identified from recordings, with no hand tuning;
 //! - [`model`]: the calibrated [`PhysicalModel`] as stored in a library file;
 //! - [`ground`]: a calibrated model running, force in and vibration out ([`Ground`]).
 //!
@@ -29,8 +29,8 @@ pub mod resonator;
 pub use aggregate::{Aggregate, AggregateParams};
 pub use calibrate::{CalibrationConfig, CalibrationError, KindChoice, calibrate};
 pub use ground::Ground;
-pub use model::{GroundKind, PhysicalModel, PhysicalRecord};
 pub use impact::{Impact, ImpactParams, Surface};
+pub use model::{GroundKind, PhysicalModel, PhysicalRecord};
 pub use resonator::{Mode, ResonatorBank};
 
 use crate::units::{Hz, SampleRate, Seconds};

@@ -31,7 +31,7 @@ impl GroundKind {
     }
 }
 
-/// A physical model calibrated from recordings ([`super::calibrate`]): the surface's
+/// A physical model calibrated from recordings ([`mod@super::calibrate`]): the surface's
 /// modes, the hammer that strikes it, and how force drives the strikes.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PhysicalModel {
