@@ -112,6 +112,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 pub mod analysis;
+pub mod compensation;
 pub mod engine;
 pub mod fit;
 pub mod force;

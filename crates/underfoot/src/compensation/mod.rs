@@ -1,0 +1,49 @@
+//! Compensation: making the device transparent for the user standing on it.
+//!
+//! The tile, its suspension, the actuator, the shoe and the leg all colour the vibration
+//! on its way to the skin (Otis et al., *limb compensation*). This stage measures that
+//! colouring and undoes it:
+//!
+//! - [`filterbank`]: a uniform FFT analysis-synthesis filter bank (weighted overlap-add),
+//!   whose sub-band gains are the equalizer's spectral weights;
+//! - [`sweep`]: the frequency response of a device from exponential sine sweeps, and a
+//!   simulated tile to measure where no hardware is at hand.
+//!
+//! Set-up allocates; the per-sample paths never do.
+
+pub mod filterbank;
+pub mod sweep;
+
+/// What is wrong with a compensation setting or measurement.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum CompensationError {
+    /// A parameter is out of its range.
+    #[error("{name} = {value} is out of range: {expected}")]
+    InvalidParameter {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// The range it must lie in.
+        expected: &'static str,
+    },
+    /// A recording is too short for what was asked of it.
+    #[error("{what}: {len} samples, at least {needed} needed")]
+    TooShort {
+        /// What was too short.
+        what: &'static str,
+        /// Its length.
+        len: usize,
+        /// The length needed.
+        needed: usize,
+    },
+    /// A signal holds a value that is not finite.
+    #[error("{what}: sample {index} is not finite")]
+    NonFinite {
+        /// Which signal.
+        what: &'static str,
+        /// Where.
+        index: usize,
+    },
+}
