@@ -202,3 +202,39 @@ fn the_aggregate_model_never_allocates_or_frees() {
     }
     assert!(agg.events() > 1000, "{}", agg.events());
 }
+
+#[test]
+fn the_filter_bank_never_allocates_or_frees() {
+    use underfoot::compensation::filterbank::{FilterBank, FilterBankConfig};
+
+    let mut bank = FilterBank::new(FilterBankConfig::default(), SampleRate(48_000)).unwrap();
+    let mut gains = vec![1.0f32; bank.bins()];
+    let mut input = vec![0.0f32; 512];
+    let mut out = vec![0.0f32; 512];
+    for block in 0..400usize {
+        for (n, x) in input.iter_mut().enumerate() {
+            *x = ((block * 512 + n) as f32 * 0.037).sin();
+        }
+        if block % 50 == 7 {
+            input[3] = f32::NAN;
+        }
+        for (k, g) in gains.iter_mut().enumerate() {
+            *g = 1.0 / (1.0 + (k + block % 5) as f32 / 30.0);
+        }
+        let frames = [1, 7, 64, 512][block % 4];
+        let (x, y) = (&input[..frames], &mut out[..frames]);
+        let n = allocations_in(|| {
+            bank.set_gains(&gains);
+            if block % 9 == 0 {
+                bank.set_gains_with(|f| if f.0 > 2000.0 { 0.5 } else { 1.0 });
+            }
+            bank.process(x, y);
+            if block == 200 {
+                bank.reset();
+            }
+        });
+        assert_eq!(n, 0, "block {block} allocated {n} times");
+        assert!(out[..frames].iter().all(|v| v.is_finite()));
+    }
+    assert!(bank.non_finite_inputs() > 0);
+}
