@@ -67,7 +67,7 @@ use realfft::RealFftPlanner;
 
 use super::CompensationError;
 use crate::signal::noise::SplitMix64;
-use crate::signal::{Biquad, Sos};
+use crate::signal::{Biquad, Sos, butterworth};
 use crate::units::{Band, Decibels, Hz, SampleRate, Seconds};
 
 /// How far the sweep extends beyond each edge of the measurement band, in octaves.
@@ -585,7 +585,6 @@ impl SimulatedTile {
         let nyq = rate.nyquist().0;
         let freq_ok = |f: Hz| f.0.is_finite() && f.0 > 0.0 && f.0 < nyq;
         let pos = |v: f64| v.is_finite() && v > 0.0;
-        let butterworth_q = std::f64::consts::FRAC_1_SQRT_2;
         let mut sections = Vec::with_capacity(cfg.modes.len() + 3);
         for m in &cfg.modes {
             if !freq_ok(m.freq) {
@@ -621,21 +620,16 @@ impl SimulatedTile {
         if !freq_ok(cfg.highpass) {
             return Err(invalid("highpass", cfg.highpass.0, "0 < f < Nyquist"));
         }
-        sections.push(bilinear(
-            [1.0, 0.0, 0.0],
-            [1.0, 1.0 / butterworth_q, 1.0],
-            cfg.highpass.0,
-            rate,
-        ));
+        // The actuator's roll-offs are the crate's own Butterworth designs.
+        let highpass = butterworth::highpass(2, cfg.highpass, rate)
+            .map_err(|_| invalid("highpass", cfg.highpass.0, "0 < f < Nyquist"))?;
+        sections.extend(highpass.sections);
         if !freq_ok(cfg.lowpass) {
             return Err(invalid("lowpass", cfg.lowpass.0, "0 < f < Nyquist"));
         }
-        sections.push(bilinear(
-            [0.0, 0.0, 1.0],
-            [1.0, 1.0 / butterworth_q, 1.0],
-            cfg.lowpass.0,
-            rate,
-        ));
+        let lowpass = butterworth::lowpass(2, cfg.lowpass, rate)
+            .map_err(|_| invalid("lowpass", cfg.lowpass.0, "0 < f < Nyquist"))?;
+        sections.extend(lowpass.sections);
         if !pos(cfg.gain) {
             return Err(invalid("gain", cfg.gain, "finite, > 0"));
         }
