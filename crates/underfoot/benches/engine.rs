@@ -69,15 +69,12 @@ fn voice(c: &mut Criterion) {
 
 fn models(c: &mut Criterion) {
     // The loading rate of a nominal step every half second, and an impulse at each strike.
-    let step = nominal_step(70.0, 1.8, RATE.hz());
+    let step =
+        DriveKind::ForceRate.offline(&nominal_step(70.0, 1.8, RATE.hz()), RATE, Newtons(1.0));
     let mut loading = vec![0.0f32; 48_000];
     let mut impulses = vec![0.0f32; 48_000];
     for start in [0, 24_000] {
-        for (i, w) in step.windows(2).enumerate() {
-            if start + i + 1 < loading.len() {
-                loading[start + i + 1] = ((w[1] - w[0]) * RATE.hz()).max(0.0) as f32;
-            }
-        }
+        loading[start..start + step.len()].copy_from_slice(&step);
         impulses[start] = 1.0;
     }
     let mut y = vec![0.0f32; 48_000];

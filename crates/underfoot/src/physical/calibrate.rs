@@ -91,7 +91,6 @@
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 
-use super::aggregate::AggregateParams;
 use super::ground::Ground;
 use super::model::{GroundKind, MAX_MODES, PhysicalModel, PhysicalRecord};
 use super::{Impact, ImpactParams, Mode, PhysicalError, Surface};
@@ -100,14 +99,13 @@ use crate::fit::crumpling::{
     CrumplingError, OnsetConfig, calibrate_rate_scale, crumpling_measure, impact_onsets,
 };
 use crate::fit::lpc::{LpcError, autocorrelation, levinson_durbin};
-use crate::fit::metrics::{lsd_db, nrmse};
+use crate::fit::metrics::{METRIC_POINTS, lsd_db, nrmse};
 use crate::fit::target::Target;
+use crate::force::drive::DriveKind;
 use crate::force::gait::nominal_step;
 use crate::recording::Recording;
 use crate::signal::wavelet::Wavelet;
-use crate::units::{Hz, SampleRate, Seconds};
-
-use crate::fit::metrics::METRIC_POINTS;
+use crate::units::{Hz, Newtons, SampleRate, Seconds};
 
 /// Whether to decide solid or aggregate from the recordings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -506,13 +504,7 @@ pub fn render_steps(
             strikes.push(start + i);
         }
     }
-    let loading: Vec<f32> = std::iter::once(0.0)
-        .chain(
-            force
-                .windows(2)
-                .map(|w| ((w[1] - w[0]) * fs).max(0.0) as f32),
-        )
-        .collect();
+    let loading = DriveKind::ForceRate.offline(&force, RENDER_RATE, Newtons(1.0));
     let mut out = vec![0.0f32; force.len()];
     let mut next = 0;
     for (b, chunk) in out.chunks_mut(block).enumerate() {
@@ -959,15 +951,5 @@ fn median(x: &mut [f64]) -> f64 {
         0.5 * (x[m - 1] + x[m])
     } else {
         x[m]
-    }
-}
-
-/// The aggregate parameters of a model.
-#[must_use]
-pub fn aggregate_params(model: &PhysicalModel) -> AggregateParams {
-    AggregateParams {
-        impact: model.hammer,
-        size_spread: model.size_spread,
-        voices: model.voices,
     }
 }

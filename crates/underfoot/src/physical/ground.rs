@@ -21,10 +21,10 @@
 
 use super::PhysicalError;
 use super::aggregate::Aggregate;
-use super::calibrate::aggregate_params;
 use super::model::{GroundKind, MAX_MODES, MAX_VOICES, PhysicalModel};
+use crate::force::drive::DriveKind;
 use crate::force::gait::nominal_step;
-use crate::units::SampleRate;
+use crate::units::{Newtons, SampleRate};
 
 /// A physical model prepared for a rate; see the module documentation.
 ///
@@ -38,7 +38,8 @@ pub struct Ground {
     gain: f32,
     /// Scratch for the event rate of one block.
     rates: Vec<f32>,
-    /// A nominal step's event rate, for steps announced without force.
+    /// A nominal step's loading rate (N/s) at this rate, for steps announced without
+    /// force; the same for every model, so loading another model leaves it be.
     nominal: Vec<f32>,
     cursor: usize,
     burst: f32,
@@ -48,15 +49,13 @@ impl Clone for Ground {
     fn clone(&self) -> Self {
         let mut aggregate = self.aggregate.clone();
         aggregate.reserve(MAX_MODES, MAX_VOICES);
-        let mut nominal = Vec::with_capacity(self.nominal.capacity());
-        nominal.extend_from_slice(&self.nominal);
         Self {
             kind: self.kind,
             aggregate,
             events_per_newton: self.events_per_newton,
             gain: self.gain,
             rates: self.rates.clone(),
-            nominal,
+            nominal: self.nominal.clone(),
             cursor: self.cursor,
             burst: self.burst,
         }
@@ -78,35 +77,21 @@ impl Ground {
         model.validate()?;
         let aggregate = Aggregate::with_capacity(
             &model.modes,
-            &aggregate_params(model),
+            &model.aggregate_params(),
             rate,
             seed,
             MAX_MODES,
             MAX_VOICES,
         )?;
-        let fs = rate.hz();
         let nominal =
-            match model.kind {
-                GroundKind::Aggregate => {
-                    let step = nominal_step(70.0, 1.8, fs);
-                    std::iter::once(0.0)
-                        .chain(step.windows(2).map(|w| {
-                            (model.events_per_newton * ((w[1] - w[0]) * fs).max(0.0)) as f32
-                        }))
-                        .collect()
-                }
-                GroundKind::Solid => Vec::new(),
-            };
-        let nominal_cap = nominal_step(70.0, 1.8, fs).len().max(1);
-        let mut nominal_buf = Vec::with_capacity(nominal_cap.max(nominal.len()));
-        nominal_buf.extend_from_slice(&nominal);
+            DriveKind::ForceRate.offline(&nominal_step(70.0, 1.8, rate.hz()), rate, Newtons(1.0));
         Ok(Self {
             kind: model.kind,
             aggregate,
             events_per_newton: model.events_per_newton as f32,
             gain: model.output_gain as f32,
             rates: vec![0.0; max_block.max(1)],
-            nominal: nominal_buf,
+            nominal,
             cursor: usize::MAX,
             burst: 0.0,
         })
@@ -120,9 +105,6 @@ impl Ground {
         self.aggregate.assign_from(&other.aggregate);
         self.events_per_newton = other.events_per_newton;
         self.gain = other.gain;
-        self.nominal.clear();
-        let room = self.nominal.capacity().min(other.nominal.len());
-        self.nominal.extend_from_slice(&other.nominal[..room]);
         self.cursor = usize::MAX;
         self.burst = 0.0;
     }
@@ -181,11 +163,12 @@ impl Ground {
             match self.kind {
                 GroundKind::Aggregate => {
                     for (r, v) in rates.iter_mut().zip(&loading[at..at + len]) {
-                        let mut x = self.events_per_newton * v.max(0.0);
+                        let mut load = v.max(0.0);
                         if let Some(b) = self.nominal.get(self.cursor) {
-                            x += self.burst * b;
+                            load += self.burst * b;
                             self.cursor += 1;
                         }
+                        let x = self.events_per_newton * load;
                         *r = if x.is_finite() { x } else { 0.0 };
                     }
                 }

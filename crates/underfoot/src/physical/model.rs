@@ -2,7 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{ImpactParams, Mode, PhysicalError};
+use super::{AggregateParams, ImpactParams, Mode, PhysicalError};
+use crate::units::Hz;
 
 /// The most modes a stored model may have.
 pub const MAX_MODES: usize = 32;
@@ -76,6 +77,16 @@ pub struct PhysicalRecord {
 }
 
 impl PhysicalModel {
+    /// The micro-impact settings of this model (a solid uses them for its one strike).
+    #[must_use]
+    pub fn aggregate_params(&self) -> AggregateParams {
+        AggregateParams {
+            impact: self.hammer,
+            size_spread: self.size_spread,
+            voices: self.voices,
+        }
+    }
+
     /// Checks everything a file could get wrong.
     ///
     /// # Errors
@@ -96,26 +107,10 @@ impl PhysicalModel {
                 "at most 32 modes",
             ));
         }
+        // The rate is not known yet: only a finite frequency is required here; the bank
+        // checks it against the Nyquist frequency when it is prepared.
         for (index, m) in self.modes.iter().enumerate() {
-            if !(m.frequency.0.is_finite() && m.frequency.0 > 0.0) {
-                return Err(invalid(
-                    "mode frequency",
-                    m.frequency.0,
-                    "positive and finite (Hz)",
-                ));
-            }
-            if !(m.decay.0.is_finite() && m.decay.0 > 0.0) {
-                return Err(PhysicalError::BadDecay {
-                    index,
-                    decay: m.decay,
-                });
-            }
-            if !m.gain.is_finite() {
-                return Err(PhysicalError::BadGain {
-                    index,
-                    gain: m.gain,
-                });
-            }
+            m.check(index, Hz(f64::INFINITY))?;
         }
         let h = &self.hammer;
         let positive = |v: f64| v.is_finite() && v > 0.0;

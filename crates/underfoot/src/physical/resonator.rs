@@ -77,6 +77,38 @@ pub struct Mode {
     pub gain: f64,
 }
 
+impl Mode {
+    /// Checks mode `index`: a frequency in `(0, below)`, a positive and finite decay time,
+    /// a finite gain.
+    ///
+    /// # Errors
+    /// [`PhysicalError::FrequencyOutOfRange`], [`PhysicalError::BadDecay`] or
+    /// [`PhysicalError::BadGain`].
+    pub fn check(&self, index: usize, below: Hz) -> Result<(), PhysicalError> {
+        let f = self.frequency.0;
+        if !(f.is_finite() && f > 0.0 && f < below.0) {
+            return Err(PhysicalError::FrequencyOutOfRange {
+                index,
+                frequency: self.frequency,
+                nyquist: below,
+            });
+        }
+        if !(self.decay.0.is_finite() && self.decay.0 > 0.0) {
+            return Err(PhysicalError::BadDecay {
+                index,
+                decay: self.decay,
+            });
+        }
+        if !self.gain.is_finite() {
+            return Err(PhysicalError::BadGain {
+                index,
+                gain: self.gain,
+            });
+        }
+        Ok(())
+    }
+}
+
 /// The highest frequency [`ResonatorBank::retune`] moves a mode to, as a fraction of the
 /// sample rate.
 const RETUNE_CEILING: f64 = 0.49;
@@ -120,26 +152,7 @@ impl ResonatorBank {
             return Err(PhysicalError::NoModes);
         }
         for (index, m) in modes.iter().enumerate() {
-            let f = m.frequency.0;
-            if !(f.is_finite() && f > 0.0 && f < rate.nyquist().0) {
-                return Err(PhysicalError::FrequencyOutOfRange {
-                    index,
-                    frequency: m.frequency,
-                    nyquist: rate.nyquist(),
-                });
-            }
-            if !(m.decay.0.is_finite() && m.decay.0 > 0.0) {
-                return Err(PhysicalError::BadDecay {
-                    index,
-                    decay: m.decay,
-                });
-            }
-            if !m.gain.is_finite() {
-                return Err(PhysicalError::BadGain {
-                    index,
-                    gain: m.gain,
-                });
-            }
+            m.check(index, rate.nyquist())?;
         }
         let zero = Complex64::new(0.0, 0.0);
         let mut bank = Self {
