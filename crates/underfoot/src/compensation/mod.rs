@@ -7,11 +7,16 @@
 //! - [`filterbank`]: a uniform FFT analysis-synthesis filter bank (weighted overlap-add),
 //!   whose sub-band gains are the equalizer's spectral weights;
 //! - [`sweep`]: the frequency response of a device from exponential sine sweeps, and a
-//!   simulated tile to measure where no hardware is at hand.
+//!   simulated tile to measure where no hardware is at hand;
+//! - [`equalizer`]: the spectral weights of the unloaded device, found by successive
+//!   sweeps (equations (4)-(5)), realised by the bank or as a low-delay minimum-phase
+//!   filter ([`fir`]), and the older static inverse FIR for comparison.
 //!
 //! Set-up allocates; the per-sample paths never do.
 
+pub mod equalizer;
 pub mod filterbank;
+pub mod fir;
 pub mod sweep;
 
 /// What is wrong with a compensation setting or measurement.
