@@ -31,6 +31,9 @@ enum Command {
     Library(commands::library::LibraryCommand),
     /// Table I: how close the IIR filter and the calibrated physical model come to recordings.
     Compare(commands::compare::CompareArgs),
+    /// Measure the device, equalize it, and fit a user's limb model.
+    #[command(subcommand)]
+    Calibrate(commands::calibrate::CalibrateCommand),
     /// Render force (a CSV track or a generated walk) to a WAV file of vibration.
     Render(commands::render::RenderArgs),
     /// Run the live engine: force from a replay, serial port or OSC, to a device.
@@ -45,6 +48,7 @@ fn main() -> ExitCode {
         Command::Fit(args) => commands::fit::run(&args),
         Command::Library(cmd) => commands::library::run(&cmd),
         Command::Compare(args) => commands::compare::run(&args),
+        Command::Calibrate(cmd) => commands::calibrate::run(&cmd),
         Command::Render(args) => commands::render::run(&args),
         Command::Run(args) => commands::run::run(&args),
         Command::Demo(args) => commands::demo::run(&args),

@@ -10,7 +10,10 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+use underfoot::compensation::chain::Compensation;
+use underfoot::compensation::equalizer::{EqualizerConfig, Realisation, SpectralWeights};
 use underfoot::engine::{self, EngineConfig, Event, MaterialBank, TimedEvent};
+use underfoot::signal::butterworth;
 use underfoot::force::SensorReading;
 use underfoot::force::gait::nominal_step;
 use underfoot::material::builtin::builtin;
@@ -72,11 +75,19 @@ fn rendering_never_allocates_or_frees() {
     let rate = SampleRate(48_000);
     let weight = Newtons::weight_of(70.0);
     let step = nominal_step(70.0, 1.8, rate.hz());
-    for (drive, model) in [
-        ("impulse", SynthModel::Iir),
-        ("force", SynthModel::Iir),
-        ("force-rate", SynthModel::Iir),
-        ("impulse", SynthModel::Physical),
+    // The last case runs every channel through a low-delay equalizer and a limb filter.
+    let mut weights = SpectralWeights::flat(EqualizerConfig::default(), rate).unwrap();
+    weights.add_in_band(|f| 6.0 * (-((f.0 - 300.0) / 80.0).powi(2)).exp());
+    let compensation = Compensation {
+        equalizer: Some((weights, Realisation::LowDelay { taps: 512 })),
+        limb: Some(butterworth::lowpass(2, Hz(1500.0), rate).unwrap()),
+    };
+    for (drive, model, compensated) in [
+        ("impulse", SynthModel::Iir, false),
+        ("force", SynthModel::Iir, false),
+        ("force-rate", SynthModel::Iir, false),
+        ("impulse", SynthModel::Physical, false),
+        ("force-rate", SynthModel::Iir, true),
     ] {
         let voice = VoiceConfig {
             model,
@@ -86,6 +97,11 @@ fn rendering_never_allocates_or_frees() {
             channels: 4,
             drive: drive.parse().unwrap(),
             gain: Decibels(30.0), // so that the limiter works too
+            compensation: if compensated {
+                compensation.clone()
+            } else {
+                Compensation::default()
+            },
             ..EngineConfig::default()
         };
         let bank = MaterialBank::prepare(builtin(), rate, &voice, &step, weight).unwrap();

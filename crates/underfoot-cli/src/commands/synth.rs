@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
+use underfoot::compensation::files::{self, EqualizerFile};
 use underfoot::engine::{EngineConfig, MaterialBank};
 use underfoot::force::drive::DriveKind;
 use underfoot::force::gait::nominal_step;
@@ -65,6 +66,9 @@ pub struct SynthArgs {
     /// About how often force readings arrive, in Hz (sets the force interpolation).
     #[arg(long = "sensor-rate", default_value_t = 500.0, value_name = "HZ")]
     pub sensor_rate: f64,
+    /// Equalize the device with this equalizer (a `calibrate equalize` file).
+    #[arg(long, value_name = "FILE")]
+    pub eq: Option<PathBuf>,
 }
 
 /// A library, a bank prepared from it, and the engine settings.
@@ -126,6 +130,17 @@ impl SynthArgs {
             ceiling: Decibels(self.ceiling_db),
             ..EngineConfig::default()
         };
+        if let Some(path) = &self.eq {
+            let eq: EqualizerFile = files::load(path)?;
+            anyhow::ensure!(
+                eq.weights.rate == rate,
+                "{} equalizes at {} Hz; use --rate {}",
+                path.display(),
+                eq.weights.rate.0,
+                eq.weights.rate.0
+            );
+            config.compensation.equalizer = Some((eq.weights, eq.realisation));
+        }
         config.detector.nominal_loading_rate = config.detector.loading_rate_of(
             &nominal_step(self.weight_kg, 1.8, self.sensor_rate),
             SampleRate(self.sensor_rate.round() as u32),

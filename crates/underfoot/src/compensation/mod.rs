@@ -10,11 +10,17 @@
 //!   simulated tile to measure where no hardware is at hand;
 //! - [`equalizer`]: the spectral weights of the unloaded device, found by successive
 //!   sweeps (equations (4)-(5)), realised by the bank or as a low-delay minimum-phase
-//!   filter ([`fir`]), and the older static inverse FIR for comparison.
+//!   filter ([`fir`]), and the older static inverse FIR for comparison;
+//! - [`files`]: the measured responses, equalizers and limb models the workflow
+//!   writes, versioned and written atomically;
+//! - [`chain`]: the equalizer and limb filter as the engine runs them on each channel,
+//!   before the limiter.
 //!
 //! Set-up allocates; the per-sample paths never do.
 
+pub mod chain;
 pub mod equalizer;
+pub mod files;
 pub mod filterbank;
 pub mod fir;
 pub mod sweep;
@@ -42,6 +48,14 @@ pub enum CompensationError {
         len: usize,
         /// The length needed.
         needed: usize,
+    },
+    /// A compensation file cannot be read or written.
+    #[error("{path}: {reason}")]
+    File {
+        /// The file.
+        path: String,
+        /// What is wrong with it.
+        reason: String,
     },
     /// A signal holds a value that is not finite.
     #[error("{what}: sample {index} is not finite")]

@@ -693,6 +693,99 @@ impl Device for SimulatedTile {
     }
 }
 
+/// A device that replays a measured response: a minimum-phase filter with its magnitude.
+///
+/// The magnitude in dB is interpolated linearly against log-frequency between the
+/// measured points and held at the end values beyond them; the phase is not kept (an
+/// equalizer of magnitudes does not need it, and a measured phase holds the audio path's
+/// latency, which a replay must not). It has no noise: equalizing against it corrects the
+/// equalizer's own realisation, not the measurement.
+#[derive(Debug, Clone)]
+pub struct MeasuredDevice {
+    taps: Vec<f64>,
+}
+
+impl MeasuredDevice {
+    /// Filter length: 170 ms at 48 kHz, 5.9 Hz of resolution.
+    pub const TAPS: usize = 8192;
+
+    /// A replay of `measured` at `rate`.
+    ///
+    /// # Errors
+    /// [`CompensationError::TooShort`] for fewer than two points,
+    /// [`CompensationError::NonFinite`] for a non-finite value.
+    pub fn new(measured: &FrequencyResponse, rate: SampleRate) -> Result<Self, CompensationError> {
+        if measured.freqs.len() < 2 || measured.freqs.len() != measured.response.len() {
+            return Err(CompensationError::TooShort {
+                what: "measured response",
+                len: measured.freqs.len().min(measured.response.len()),
+                needed: 2,
+            });
+        }
+        if let Some(index) = measured
+            .response
+            .iter()
+            .zip(&measured.freqs)
+            .position(|(h, f)| !(h.re.is_finite() && h.im.is_finite() && f.0 > 0.0))
+        {
+            return Err(CompensationError::NonFinite {
+                what: "measured response",
+                index,
+            });
+        }
+        let logf: Vec<f64> = measured.freqs.iter().map(|f| f.0.ln()).collect();
+        let db: Vec<f64> = measured.magnitude_db().iter().map(|d| d.0).collect();
+        let fs = rate.hz();
+        let mut designer = super::fir::MinPhaseDesigner::new(Self::TAPS, 0)?;
+        let mut taps = vec![0.0; Self::TAPS];
+        let at = |nu: f64| {
+            let x = (nu * fs).max(f64::MIN_POSITIVE).ln();
+            let i = logf.partition_point(|&v| v < x);
+            if i == 0 {
+                db[0]
+            } else if i >= logf.len() {
+                db[db.len() - 1]
+            } else {
+                let t = (x - logf[i - 1]) / (logf[i] - logf[i - 1]);
+                db[i - 1] + t * (db[i] - db[i - 1])
+            }
+        };
+        if !designer.design(at, &mut taps) {
+            return Err(CompensationError::NonFinite {
+                what: "replayed response",
+                index: 0,
+            });
+        }
+        Ok(Self { taps })
+    }
+}
+
+impl Device for MeasuredDevice {
+    /// Convolves with the replayed response (by FFT), as long as the excitation.
+    fn play(&mut self, excitation: &[f64]) -> Vec<f64> {
+        let n = (excitation.len() + self.taps.len()).next_power_of_two();
+        let x = spectrum(excitation, n);
+        let h = spectrum(&self.taps, n);
+        let mut product: Vec<Complex64> = x.iter().zip(&h).map(|(a, b)| a * b).collect();
+        let mut out = vec![0.0; n];
+        let inverse = RealFftPlanner::<f64>::new().plan_fft_inverse(n);
+        if let Some(first) = product.first_mut() {
+            first.im = 0.0;
+        }
+        if let Some(last) = product.last_mut() {
+            last.im = 0.0;
+        }
+        if inverse.process(&mut product, &mut out).is_err() {
+            return vec![0.0; excitation.len()];
+        }
+        out.truncate(excitation.len());
+        for v in &mut out {
+            *v /= n as f64;
+        }
+        out
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -729,6 +822,18 @@ mod tests {
             ..TileConfig::default()
         };
         SimulatedTile::new(&cfg, RATE).unwrap()
+    }
+
+    #[test]
+    fn a_replayed_measurement_has_the_measured_magnitude() {
+        let sweep = Sweep::new(SweepConfig::new(RATE)).unwrap();
+        let mut device = tile(Some(Decibels(-40.0)), 3);
+        let measured = measure(&mut device, &sweep).unwrap();
+        let mut replay = MeasuredDevice::new(&measured, RATE).unwrap();
+        let again = measure(&mut replay, &sweep).unwrap();
+        for (a, b) in again.magnitude_db().iter().zip(measured.magnitude_db()) {
+            assert!((a.0 - b.0).abs() < 0.2, "{} vs {}", a.0, b.0);
+        }
     }
 
     #[test]

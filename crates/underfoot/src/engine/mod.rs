@@ -25,8 +25,9 @@
 //! # Output
 //!
 //! Channel `c` goes to device channel `c`; device channels beyond the engine's are zero.
-//! Each output channel has its own [`Limiter`]; a [`Fader`] ramps everything in at start
-//! and out at [`Controller::stop`].
+//! Each output channel goes through the configured compensation (the device equalizer and
+//! the limb filter, [`EngineConfig::compensation`]) and then its own [`Limiter`]; a
+//! [`Fader`] ramps everything in at start and out at [`Controller::stop`].
 
 mod channel;
 pub mod event;
@@ -37,6 +38,8 @@ use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 
 pub use event::{Event, TimedEvent};
 
+use crate::compensation::CompensationError;
+use crate::compensation::chain::{Compensation, CompensationChain};
 use crate::force::drive::{DriveKind, Polarity};
 use crate::force::steps::DetectorConfig;
 use crate::material::Library;
@@ -82,6 +85,9 @@ pub struct EngineConfig {
     pub fade: Seconds,
     /// Capacity of the event queue (default 8192).
     pub queue_capacity: usize,
+    /// Device equalizer and limb compensation, applied to every channel before its
+    /// limiter (default: none).
+    pub compensation: Compensation,
 }
 
 impl Default for EngineConfig {
@@ -104,6 +110,7 @@ impl Default for EngineConfig {
             crossfade: Seconds(0.02),
             fade: Seconds(0.01),
             queue_capacity: 8192,
+            compensation: Compensation::default(),
         }
     }
 }
@@ -126,6 +133,9 @@ pub enum EngineError {
         /// The names there are.
         available: String,
     },
+    /// The compensation cannot run at this engine's settings.
+    #[error("compensation: {0}")]
+    Compensation(#[from] CompensationError),
     /// The event queue is full: the audio thread is not running or not keeping up.
     #[error("the engine's event queue is full (is the audio device running?)")]
     QueueFull,
@@ -371,6 +381,8 @@ pub struct Engine {
     )]
     bank: Vec<Box<PreparedMaterial>>,
     limiters: Vec<Limiter>,
+    /// One per channel, or none when there is no compensation.
+    chains: Vec<CompensationChain>,
     fader: Fader,
     gain: f32,
     frame: u64,
@@ -439,8 +451,16 @@ pub fn build(
     for (ch, slot) in channels.iter_mut().zip(initial) {
         ch.set_material(*slot, &bank[usize::from(*slot)]);
     }
+    let chains = if config.compensation.is_identity() {
+        Vec::new()
+    } else {
+        (0..config.channels)
+            .map(|_| CompensationChain::new(&config.compensation, config.rate, 64))
+            .collect::<Result<_, _>>()?
+    };
     let engine = Engine {
         rate: config.rate,
+        chains,
         limiters: (0..config.channels)
             .map(|_| Limiter::new(config.ceiling, config.release, config.rate))
             .collect(),
@@ -602,6 +622,9 @@ impl Engine {
                 let len = (n - start).min(channel_buf.len());
                 let buf = &mut channel_buf[..len];
                 resets += channel.render(buf);
+                if let Some(chain) = self.chains.get_mut(c) {
+                    resets += chain.process(buf);
+                }
                 if c < device_channels {
                     for (i, y) in buf.iter().enumerate() {
                         let v = limiter.tick(y * fade[start + i], &mut report);

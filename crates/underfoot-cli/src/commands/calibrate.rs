@@ -1,0 +1,355 @@
+//! `underfoot calibrate`: measure the device, equalize it, fit a user's limb model.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use clap::{Args, Subcommand};
+use underfoot::compensation::equalizer::{
+    EqualizerConfig, EqualizerFilter, Equalized, PassReport, Realisation, equalize,
+};
+use underfoot::compensation::files::{self, EqualizerFile, PassFigures, ResponseFile};
+use underfoot::compensation::sweep::{
+    Device, FrequencyResponse, MeasuredDevice, SimulatedTile, Sweep, SweepConfig, TileConfig,
+    measure,
+};
+use underfoot::units::{Band, Decibels, SampleRate, Seconds};
+
+use crate::output::emit;
+use crate::plot::{Curve, Omitted, draw_responses};
+use crate::report::{Align, table};
+
+/// The calibration steps, in the order a session runs them.
+#[derive(Debug, Subcommand)]
+pub enum CalibrateCommand {
+    /// Measure a device's frequency response with exponential sine sweeps.
+    Sweep(SweepArgs),
+    /// Tune the device equalizer by successive sweeps (the paper's equations 4-5).
+    Equalize(EqualizeArgs),
+}
+
+/// Where sweeps are played and recorded.
+#[derive(Debug, Clone)]
+pub enum DeviceArg {
+    /// The simulated tile (resonances at 180, 420 and 760 Hz, a 20 Hz suspension notch,
+    /// a 50-900 Hz actuator, accelerometer noise).
+    Simulated,
+    /// A replay of a measured response (a `calibrate sweep` file).
+    Measured(PathBuf),
+}
+
+fn parse_device(s: &str) -> Result<DeviceArg, String> {
+    match s {
+        "simulated" => Ok(DeviceArg::Simulated),
+        "" => Err("expected `simulated` or a measured-response file".into()),
+        path => Ok(DeviceArg::Measured(PathBuf::from(path))),
+    }
+}
+
+fn parse_band(s: &str) -> Result<Band, String> {
+    let (lo, hi) = s
+        .split_once(',')
+        .ok_or_else(|| format!("{s:?}: expected LO,HI in Hz"))?;
+    let parse = |v: &str| {
+        v.trim()
+            .parse::<f64>()
+            .map_err(|e| format!("{v:?}: {e}"))
+    };
+    Ok(Band::new(parse(lo)?, parse(hi)?))
+}
+
+/// The sweep settings shared by `sweep` and `equalize`.
+#[derive(Debug, Clone, Args)]
+pub struct SweepSettings {
+    /// The band measured, in Hz (the skin's vibrotactile range by default).
+    #[arg(long, default_value = "40,1024", value_name = "LO,HI", value_parser = parse_band)]
+    pub band: Band,
+    /// Sample rate.
+    #[arg(long, default_value_t = 48_000, value_name = "HZ")]
+    pub rate: u32,
+    /// Sweeps averaged per measurement.
+    #[arg(long, default_value_t = 3, value_name = "N")]
+    pub repeats: usize,
+    /// Duration of one sweep, in seconds.
+    #[arg(long, default_value_t = 2.0, value_name = "S")]
+    pub duration: f64,
+    /// Simulated device only: accelerometer noise relative to the signal, in dB.
+    #[arg(long = "noise-db", default_value_t = -40.0, value_name = "DB", allow_hyphen_values = true)]
+    pub noise_db: f64,
+    /// Simulated device only: seed of the noise.
+    #[arg(long, default_value_t = 0x5EED, value_name = "N")]
+    pub seed: u64,
+}
+
+impl SweepSettings {
+    fn sweep(&self) -> anyhow::Result<Sweep> {
+        anyhow::ensure!(
+            (8_000..=384_000).contains(&self.rate),
+            "--rate {} Hz: need 8000 to 384000",
+            self.rate
+        );
+        let cfg = SweepConfig {
+            band: self.band,
+            repeats: self.repeats,
+            duration: Seconds(self.duration),
+            ..SweepConfig::new(SampleRate(self.rate))
+        };
+        Sweep::new(cfg).context("setting up the sweep")
+    }
+
+    fn device(&self, device: &DeviceArg) -> anyhow::Result<(Box<dyn Device>, String)> {
+        let rate = SampleRate(self.rate);
+        match device {
+            DeviceArg::Simulated => {
+                anyhow::ensure!(
+                    self.noise_db.is_finite() && self.noise_db <= 0.0,
+                    "--noise-db {}: need a finite level at most 0 dB",
+                    self.noise_db
+                );
+                let cfg = TileConfig {
+                    noise: Some(Decibels(self.noise_db)),
+                    seed: self.seed,
+                    ..TileConfig::default()
+                };
+                let tile = SimulatedTile::new(&cfg, rate).context("the simulated tile")?;
+                Ok((
+                    Box::new(tile),
+                    format!("simulated tile, {} dB sensor noise", self.noise_db),
+                ))
+            }
+            DeviceArg::Measured(path) => {
+                let file: ResponseFile = files::load(path)?;
+                anyhow::ensure!(
+                    file.rate == rate,
+                    "{} was measured at {} Hz; use --rate {}",
+                    path.display(),
+                    file.rate.0,
+                    file.rate.0
+                );
+                let replay = MeasuredDevice::new(&file.response(), rate)
+                    .with_context(|| format!("replaying {}", path.display()))?;
+                Ok((
+                    Box::new(replay),
+                    format!("replay of {} ({})", path.display(), file.description),
+                ))
+            }
+        }
+    }
+}
+
+/// `underfoot calibrate sweep`.
+#[derive(Debug, Clone, Args)]
+pub struct SweepArgs {
+    /// The device: `simulated`, or a measured-response file to replay.
+    #[arg(long, default_value = "simulated", value_name = "DEVICE", value_parser = parse_device)]
+    pub device: DeviceArg,
+    /// Measure through this equalizer (a `calibrate equalize` file).
+    #[arg(long, value_name = "FILE")]
+    pub eq: Option<PathBuf>,
+    /// Where to write the measured response (JSON).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Also draw the response (.svg or .png).
+    #[arg(long, value_name = "FILE")]
+    pub plot: Option<PathBuf>,
+    #[command(flatten)]
+    pub settings: SweepSettings,
+}
+
+/// `underfoot calibrate equalize`.
+#[derive(Debug, Clone, Args)]
+pub struct EqualizeArgs {
+    /// The device: `simulated`, or a measured-response file (from `calibrate sweep`),
+    /// whose magnitude is replayed for the passes after the first.
+    #[arg(long, value_name = "DEVICE", value_parser = parse_device)]
+    pub device: DeviceArg,
+    /// Sweeps (passes); the first is through flat weights.
+    #[arg(long, default_value_t = 3, value_name = "N")]
+    pub passes: usize,
+    /// How the weights are applied: low-delay (a minimum-phase filter, no bulk delay) or
+    /// bank (the uniform filter bank, N - 1 samples of delay).
+    #[arg(long, default_value = "low-delay", value_name = "KIND")]
+    pub realisation: String,
+    /// Low-delay only: filter length in taps.
+    #[arg(long, default_value_t = 2048, value_name = "N")]
+    pub taps: usize,
+    /// Size N of the uniform bank that carries the weights (bins fs/N apart).
+    #[arg(long, default_value_t = 4096, value_name = "N")]
+    pub bins: usize,
+    /// Largest boost of any frequency, in dB.
+    #[arg(long = "max-boost-db", default_value_t = 12.0, value_name = "DB")]
+    pub max_boost_db: f64,
+    /// Where to write the equalizer (JSON).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Also draw every pass against flat (.svg or .png).
+    #[arg(long, value_name = "FILE")]
+    pub plot: Option<PathBuf>,
+    #[command(flatten)]
+    pub settings: SweepSettings,
+}
+
+pub fn run(cmd: &CalibrateCommand) -> anyhow::Result<()> {
+    match cmd {
+        CalibrateCommand::Sweep(args) => sweep(args),
+        CalibrateCommand::Equalize(args) => equalize_cmd(args),
+    }
+}
+
+fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
+    let s = &args.settings;
+    let sweep = s.sweep()?;
+    let (mut device, mut description) = s.device(&args.device)?;
+    let response = match &args.eq {
+        Some(path) => {
+            let eq: EqualizerFile = files::load(path)?;
+            let mut filter = EqualizerFilter::new(&eq.weights, eq.realisation)
+                .with_context(|| format!("preparing the equalizer of {}", path.display()))?;
+            anyhow::ensure!(
+                filter.rate().0 == s.rate,
+                "{} is for {} Hz; use --rate {}",
+                path.display(),
+                filter.rate().0,
+                filter.rate().0
+            );
+            description.push_str(&format!(", through {}", path.display()));
+            measure(
+                &mut Equalized {
+                    filter: &mut filter,
+                    device: device.as_mut(),
+                },
+                &sweep,
+            )
+        }
+        None => measure(device.as_mut(), &sweep),
+    }
+    .context("measuring the response")?;
+    let file = ResponseFile::new(&response, SampleRate(s.rate), s.band, s.repeats, description);
+    files::save(&args.out, &file)?;
+    emit(&format!(
+        "measured {}: {} points over {}-{} Hz, {:.2} dB from flat (RMS); wrote {}\n",
+        file.description,
+        file.freqs_hz.len(),
+        s.band.lo.0,
+        s.band.hi.0,
+        file.deviation_db,
+        args.out.display()
+    ))?;
+    if let Some(plot) = &args.plot {
+        let db = centred(&response);
+        let freqs: Vec<f64> = response.freqs.iter().map(|f| f.0).collect();
+        let curves = [Curve {
+            label: "measured".into(),
+            freqs_hz: &freqs,
+            db: &db,
+        }];
+        plotted(plot, draw_responses(plot, "Frequency response (relative to its mean)", &curves)?)?;
+    }
+    Ok(())
+}
+
+fn equalize_cmd(args: &EqualizeArgs) -> anyhow::Result<()> {
+    let s = &args.settings;
+    let realisation = match args.realisation.as_str() {
+        "low-delay" => Realisation::LowDelay { taps: args.taps },
+        "bank" => Realisation::Bank,
+        other => anyhow::bail!("--realisation {other:?}: expected low-delay or bank"),
+    };
+    anyhow::ensure!(
+        (1..=10).contains(&args.passes),
+        "--passes {}: need 1 to 10",
+        args.passes
+    );
+    let sweep = s.sweep()?;
+    let (mut device, description) = s.device(&args.device)?;
+    let config = EqualizerConfig {
+        band: s.band,
+        bins: args.bins,
+        max_boost: Decibels(args.max_boost_db),
+        ..EqualizerConfig::default()
+    };
+    let eq = equalize(device.as_mut(), &sweep, config, realisation, args.passes)
+        .context("equalizing")?;
+    let passes: Vec<PassFigures> = eq.passes.iter().map(PassFigures::from).collect();
+    let latency_ms = match realisation {
+        Realisation::Bank => (args.bins - 1) as f64 / f64::from(s.rate) * 1e3,
+        Realisation::LowDelay { .. } => 0.0,
+    };
+    let file = EqualizerFile::new(eq.weights, realisation, passes.clone(), description);
+    files::save(&args.out, &file)?;
+    let rows: Vec<Vec<String>> = passes
+        .iter()
+        .map(|p| {
+            vec![
+                p.pass.to_string(),
+                format!("{:.2}", p.deviation_db),
+                format!("{:.2}", p.peak_db),
+            ]
+        })
+        .collect();
+    emit(&format!(
+        "equalizing {} over {}-{} Hz ({}, {:.1} ms bulk delay)\n{}wrote {}\n",
+        file.description,
+        s.band.lo.0,
+        s.band.hi.0,
+        match realisation {
+            Realisation::Bank => format!("filter bank, N = {}", args.bins),
+            Realisation::LowDelay { taps } => format!("low-delay minimum-phase filter, {taps} taps"),
+        },
+        latency_ms,
+        table(
+            &[
+                ("pass", Align::Right),
+                ("deviation RMS (dB)", Align::Right),
+                ("peak (dB)", Align::Right),
+            ],
+            &rows
+        ),
+        args.out.display()
+    ))?;
+    if let Some(plot) = &args.plot {
+        draw_passes(plot, &eq.passes)?;
+    }
+    Ok(())
+}
+
+/// Magnitude in dB minus its mean.
+fn centred(response: &FrequencyResponse) -> Vec<f64> {
+    let db: Vec<f64> = response.magnitude_db().iter().map(|d| d.0).collect();
+    let mean = db.iter().sum::<f64>() / db.len().max(1) as f64;
+    db.iter().map(|d| d - mean).collect()
+}
+
+fn draw_passes(path: &Path, passes: &[PassReport]) -> anyhow::Result<()> {
+    let data: Vec<(Vec<f64>, Vec<f64>)> = passes
+        .iter()
+        .map(|p| {
+            (
+                p.response.freqs.iter().map(|f| f.0).collect(),
+                centred(&p.response),
+            )
+        })
+        .collect();
+    let curves: Vec<Curve<'_>> = passes
+        .iter()
+        .zip(&data)
+        .map(|(p, (f, db))| Curve {
+            label: format!("pass {} ({:.2} dB)", p.pass, p.deviation.0),
+            freqs_hz: f,
+            db,
+        })
+        .collect();
+    plotted(
+        path,
+        draw_responses(path, "Equalized device against flat, pass by pass", &curves)?,
+    )
+}
+
+fn plotted(path: &Path, omitted: Omitted) -> anyhow::Result<()> {
+    if omitted == Omitted::Text {
+        eprintln!(
+            "underfoot: warning: no font found, so {} has no text (set UNDERFOOT_FONT)",
+            path.display()
+        );
+    }
+    emit(&format!("drew {}\n", path.display()))
+}
