@@ -1200,14 +1200,20 @@ fn draw_response_panel<DB: DrawingBackend>(
         TRANSPARENT
     };
     let text = |size: f64| (FAMILY, size).into_font().color(&ink);
-    let values = curves.iter().flat_map(|c| c.db.iter().copied()).filter(|v| v.is_finite());
+    let values = curves
+        .iter()
+        .flat_map(|c| c.db.iter().copied())
+        .filter(|v| v.is_finite());
     let top = values.clone().fold(f64::NEG_INFINITY, f64::max);
     let low = values.fold(f64::INFINITY, f64::min).max(top - FLOOR_DB);
     // At least ±3 dB around the curves, so a flat response looks flat, not magnified.
     let mid = 0.5 * (top + low);
     let half = (0.5 * (top - low) + 1.0).max(3.0);
     let (floor, top) = (mid - half, mid + half);
-    let lo = curves.iter().map(|c| c.freqs_hz[0]).fold(f64::INFINITY, f64::min);
+    let lo = curves
+        .iter()
+        .map(|c| c.freqs_hz[0])
+        .fold(f64::INFINITY, f64::min);
     let hi = curves
         .iter()
         .map(|c| c.freqs_hz[c.freqs_hz.len() - 1])
@@ -1225,8 +1231,11 @@ fn draw_response_panel<DB: DrawingBackend>(
         let first = w as i32 - 150 * curves.len() as i32;
         for (i, c) in curves.iter().enumerate() {
             let x = first + 150 * i as i32;
-            area.draw(&PathElement::new(vec![(x, row_y), (x + 20, row_y)], style(i)))
-                .map_err(e)?;
+            area.draw(&PathElement::new(
+                vec![(x, row_y), (x + 20, row_y)],
+                style(i),
+            ))
+            .map_err(e)?;
             area.draw(&Text::new(
                 c.label.clone(),
                 (x + 25, row_y),

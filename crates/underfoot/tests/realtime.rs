@@ -13,11 +13,11 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use underfoot::compensation::chain::Compensation;
 use underfoot::compensation::equalizer::{EqualizerConfig, Realisation, SpectralWeights};
 use underfoot::engine::{self, EngineConfig, Event, MaterialBank, TimedEvent};
-use underfoot::signal::butterworth;
 use underfoot::force::SensorReading;
 use underfoot::force::gait::nominal_step;
 use underfoot::material::builtin::builtin;
 use underfoot::physical::{Aggregate, AggregateParams, Mode};
+use underfoot::signal::butterworth;
 use underfoot::synthesis::{PreparedMaterial, SynthModel, VoiceConfig};
 use underfoot::units::{Decibels, Hz, Newtons, SampleRate, Seconds};
 

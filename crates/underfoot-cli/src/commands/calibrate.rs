@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::{Args, Subcommand};
 use underfoot::compensation::equalizer::{
-    EqualizerConfig, EqualizerFilter, Equalized, PassReport, Realisation, equalize,
+    Equalized, EqualizerConfig, EqualizerFilter, PassReport, Realisation, equalize,
 };
 use underfoot::compensation::files::{self, EqualizerFile, PassFigures, ResponseFile};
 use underfoot::compensation::sweep::{
@@ -49,11 +49,7 @@ fn parse_band(s: &str) -> Result<Band, String> {
     let (lo, hi) = s
         .split_once(',')
         .ok_or_else(|| format!("{s:?}: expected LO,HI in Hz"))?;
-    let parse = |v: &str| {
-        v.trim()
-            .parse::<f64>()
-            .map_err(|e| format!("{v:?}: {e}"))
-    };
+    let parse = |v: &str| v.trim().parse::<f64>().map_err(|e| format!("{v:?}: {e}"));
     Ok(Band::new(parse(lo)?, parse(hi)?))
 }
 
@@ -223,7 +219,13 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         None => measure(device.as_mut(), &sweep),
     }
     .context("measuring the response")?;
-    let file = ResponseFile::new(&response, SampleRate(s.rate), s.band, s.repeats, description);
+    let file = ResponseFile::new(
+        &response,
+        SampleRate(s.rate),
+        s.band,
+        s.repeats,
+        description,
+    );
     files::save(&args.out, &file)?;
     emit(&format!(
         "measured {}: {} points over {}-{} Hz, {:.2} dB from flat (RMS); wrote {}\n",
@@ -242,7 +244,10 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
             freqs_hz: &freqs,
             db: &db,
         }];
-        plotted(plot, draw_responses(plot, "Frequency response (relative to its mean)", &curves)?)?;
+        plotted(
+            plot,
+            draw_responses(plot, "Frequency response (relative to its mean)", &curves)?,
+        )?;
     }
     Ok(())
 }
@@ -293,7 +298,8 @@ fn equalize_cmd(args: &EqualizeArgs) -> anyhow::Result<()> {
         s.band.hi.0,
         match realisation {
             Realisation::Bank => format!("filter bank, N = {}", args.bins),
-            Realisation::LowDelay { taps } => format!("low-delay minimum-phase filter, {taps} taps"),
+            Realisation::LowDelay { taps } =>
+                format!("low-delay minimum-phase filter, {taps} taps"),
         },
         latency_ms,
         table(

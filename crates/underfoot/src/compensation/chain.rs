@@ -169,7 +169,9 @@ mod tests {
             b: [0.2, 0.1, 0.0],
             a: [1.0, -0.5, 0.0],
         }]);
-        let input: Vec<f32> = (0..3000).map(|i| ((i * 7919 % 257) as f32 - 128.0) / 128.0).collect();
+        let input: Vec<f32> = (0..3000)
+            .map(|i| ((i * 7919 % 257) as f32 - 128.0) / 128.0)
+            .collect();
         for realisation in [Realisation::LowDelay { taps: 256 }, Realisation::Bank] {
             let comp = Compensation {
                 equalizer: Some((weights(), realisation)),

@@ -83,7 +83,8 @@ pub fn load<T: Document>(path: &Path) -> Result<T, CompensationError> {
 /// [`CompensationError::File`] when it cannot be written (the old file is kept).
 pub fn save<T: Document>(path: &Path, doc: &T) -> Result<(), CompensationError> {
     doc.validate()?;
-    let mut text = serde_json::to_string_pretty(doc).map_err(|e| file_error(path, e.to_string()))?;
+    let mut text =
+        serde_json::to_string_pretty(doc).map_err(|e| file_error(path, e.to_string()))?;
     text.push('\n');
     write_atomic(path, text.as_bytes()).map_err(|e| file_error(path, e.to_string()))
 }
@@ -297,7 +298,10 @@ mod tests {
         }
         // Another kind.
         let err = load::<EqualizerFile>(&path).unwrap_err().to_string();
-        assert!(err.contains("frequency-response") && err.contains("equalizer"), "{err}");
+        assert!(
+            err.contains("frequency-response") && err.contains("equalizer"),
+            "{err}"
+        );
         // Another version.
         let text = std::fs::read_to_string(&path)
             .unwrap()
