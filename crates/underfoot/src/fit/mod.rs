@@ -38,6 +38,7 @@ pub mod metrics;
 pub mod refine;
 pub mod roots;
 pub mod target;
+pub mod trf;
 pub mod vector_fit;
 
 pub use metrics::{MetricGrid, Metrics};
