@@ -7,12 +7,23 @@
 //! - [`filterbank`]: a uniform FFT analysis-synthesis filter bank (weighted overlap-add),
 //!   whose sub-band gains are the equalizer's spectral weights;
 //! - [`sweep`]: the frequency response of a device from exponential sine sweeps, and a
-//!   simulated tile to measure where no hardware is at hand.
+//!   simulated tile to measure where no hardware is at hand;
+//! - [`limb`]: the rheological model of the lower limb (equations (1)-(3)), its bounded
+//!   fit to a loaded-over-unloaded sweep, its inverse `Z_c` as a compensation filter, and a
+//!   simulated user standing on the simulated tile;
+//! - [`table`]: the table of users: each user's equalizer curve, interpolated for a new
+//!   user's limb parameters, stored as versioned JSON.
 //!
 //! Set-up allocates; the per-sample paths never do.
 
 pub mod filterbank;
+pub mod limb;
 pub mod sweep;
+pub mod table;
+
+use std::path::PathBuf;
+
+use crate::fit::trf::TrfError;
 
 /// What is wrong with a compensation setting or measurement.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -45,5 +56,58 @@ pub enum CompensationError {
         what: &'static str,
         /// Where.
         index: usize,
+    },
+    /// Two inputs that must match in length do not.
+    #[error("{what}: {len} entries, {expected} expected")]
+    Mismatch {
+        /// What does not match.
+        what: &'static str,
+        /// Its length.
+        len: usize,
+        /// The length expected.
+        expected: usize,
+    },
+    /// Something that must hold at least one entry is empty.
+    #[error("{what} is empty")]
+    Empty {
+        /// What is empty.
+        what: &'static str,
+    },
+    /// The bounded least-squares fit could not be run.
+    #[error("fit failed: {0}")]
+    FitFailed(#[source] TrfError),
+    /// A filter that must be stable is not.
+    #[error("unstable: {what}")]
+    Unstable {
+        /// Which filter, and why.
+        what: &'static str,
+    },
+    /// A file could not be read or written.
+    #[error("{path}: {action}: {message}", path = path.display())]
+    Io {
+        /// The file (or, for a save, the temporary file next to it).
+        path: PathBuf,
+        /// What was being done.
+        action: &'static str,
+        /// The underlying error, as text (I/O errors are neither `Clone` nor `PartialEq`).
+        message: String,
+    },
+    /// A file's contents are not what they must be.
+    #[error("{path}: {reason}", path = path.display())]
+    BadFile {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A file's `version` is not one this code reads.
+    #[error("{path}: version {found} is not supported (this version of underfoot reads {supported})", path = path.display())]
+    UnsupportedVersion {
+        /// The file.
+        path: PathBuf,
+        /// The version found.
+        found: u64,
+        /// The version read.
+        supported: u64,
     },
 }
