@@ -244,7 +244,7 @@ impl LimbModel {
     /// The analog sections `(numerator, denominator)` of `H_u / level`, coefficients of
     /// `[s², s, 1]`: a first-order section with the numerator's real root, then the
     /// second-order one with the skin's denominator.
-    fn analog_sections(&self) -> Result<[([f64; 3], [f64; 3]); 2], CompensationError> {
+    fn analog_sections(&self) -> Result<[AnalogSection; 2], CompensationError> {
         self.validate()?;
         let num = self.numerator();
         let r = roots::roots(&num).ok_or(CompensationError::Unstable {
@@ -348,6 +348,9 @@ impl LimbModel {
         Ok(sos)
     }
 }
+
+/// An analog section `(numerator, denominator)`, coefficients of `[s², s, 1]`.
+type AnalogSection = ([f64; 3], [f64; 3]);
 
 /// `j 2π f`.
 fn jw(f: Hz) -> Complex64 {
@@ -574,7 +577,11 @@ pub fn fit_limb(
     let lo = cfg.bounds.lower.to_array().map(f64::ln);
     let hi = cfg.bounds.upper.to_array().map(f64::ln);
     if let Some(i) = (0..3).find(|&i| lo[i] >= hi[i]) {
-        let names = ["bounds.upper.b3_k3", "bounds.upper.k2_m2", "bounds.upper.b2_m2"];
+        let names = [
+            "bounds.upper.b3_k3",
+            "bounds.upper.k2_m2",
+            "bounds.upper.b2_m2",
+        ];
         return Err(invalid(
             names[i],
             cfg.bounds.upper.to_array()[i],

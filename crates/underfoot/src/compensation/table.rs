@@ -234,8 +234,8 @@ impl UserTable {
                 supported: TABLE_VERSION,
             });
         }
-        let file: TableFile = serde_json::from_value(value)
-            .map_err(|e| bad(format!("not a user table: {e}")))?;
+        let file: TableFile =
+            serde_json::from_value(value).map_err(|e| bad(format!("not a user table: {e}")))?;
         let mut table = Self::new(file.freqs).map_err(|e| bad(e.to_string()))?;
         for entry in file.entries {
             let name = entry.name.clone();
@@ -423,10 +423,7 @@ mod tests {
         // A curve one entry short.
         let v: serde_json::Value = serde_json::from_str(&good).unwrap();
         let mut v2 = v.clone();
-        v2["entries"][0]["weights_db"]
-            .as_array_mut()
-            .unwrap()
-            .pop();
+        v2["entries"][0]["weights_db"].as_array_mut().unwrap().pop();
         let err = write(&v2.to_string()).unwrap_err();
         assert!(
             matches!(&err, CompensationError::BadFile { reason, .. } if reason.contains("15 entries, 16 expected")),

@@ -272,17 +272,24 @@ impl Bounds<'_> {
     /// `x` moved strictly inside: a value on (or within a relative `1e-10` of) a bound is
     /// pushed that far in, or to the middle of a box narrower than that.
     fn interior(&self, x: &mut [f64]) {
-        for i in 0..x.len() {
-            let (l, h) = (self.lo[i], self.hi[i]);
+        for ((xi, &l), &h) in x.iter_mut().zip(self.lo).zip(self.hi) {
             // An infinite bound needs no margin (and would make an infinite one).
-            let lo_in = if l.is_finite() { l + 1e-10 * l.abs().max(1.0) } else { l };
-            let hi_in = if h.is_finite() { h - 1e-10 * h.abs().max(1.0) } else { h };
+            let lo_in = if l.is_finite() {
+                l + 1e-10 * l.abs().max(1.0)
+            } else {
+                l
+            };
+            let hi_in = if h.is_finite() {
+                h - 1e-10 * h.abs().max(1.0)
+            } else {
+                h
+            };
             if lo_in >= hi_in {
-                x[i] = 0.5 * (l + h);
-            } else if x[i] < lo_in {
-                x[i] = lo_in;
-            } else if x[i] > hi_in {
-                x[i] = hi_in;
+                *xi = 0.5 * (l + h);
+            } else if *xi < lo_in {
+                *xi = lo_in;
+            } else if *xi > hi_in {
+                *xi = hi_in;
             }
         }
     }
@@ -791,8 +798,8 @@ mod tests {
         let p = rosenbrock();
         let lo = [-2.0, -1.0];
         let hi = [2.0, 0.5];
-        let sol = least_squares_bounded(&p, &[-1.2, 0.0], &lo, &hi, &TrfOptions::default())
-            .unwrap();
+        let sol =
+            least_squares_bounded(&p, &[-1.2, 0.0], &lo, &hi, &TrfOptions::default()).unwrap();
         eprintln!(
             "bounded rosenbrock: x = {:?}, g = {:?}, {} iterations, {:?}",
             sol.x, sol.gradient, sol.iterations, sol.status
@@ -826,9 +833,14 @@ mod tests {
     fn unconstrained_rosenbrock_converges() {
         let p = rosenbrock();
         let inf = f64::INFINITY;
-        let sol =
-            least_squares_bounded(&p, &[-1.2, 1.0], &[-inf, -inf], &[inf, inf], &Default::default())
-                .unwrap();
+        let sol = least_squares_bounded(
+            &p,
+            &[-1.2, 1.0],
+            &[-inf, -inf],
+            &[inf, inf],
+            &Default::default(),
+        )
+        .unwrap();
         assert!((sol.x[0] - 1.0).abs() < 1e-8 && (sol.x[1] - 1.0).abs() < 1e-8);
     }
 
@@ -884,7 +896,10 @@ mod tests {
         let sol = least_squares_bounded(&cliff, &[0.1], &[0.0], &[10.0], &TrfOptions::default());
         match sol {
             Ok(s) => assert!(s.x[0] <= 0.6 && s.cost.is_finite()),
-            Err(e) => assert!(matches!(e, TrfError::Numerical(_) | TrfError::NonFinite { .. })),
+            Err(e) => assert!(matches!(
+                e,
+                TrfError::Numerical(_) | TrfError::NonFinite { .. }
+            )),
         }
     }
 }
