@@ -466,7 +466,12 @@ pub struct LimbFit {
     pub starts: usize,
     /// 1-σ relative uncertainty of `[b3/k3, k2/m2, b2/m2]` implied by the residuals:
     /// the square roots of the diagonal of `σ² (J^T J)^{-1}` in log parameters (level
-    /// included in the fit), `σ` the RMS residual. Infinite where `J^T J` is singular.
+    /// included in the fit), `σ²` the residual variance inflated by `(1 + ρ)/(1 − ρ)` for
+    /// the residuals' lag-one correlation `ρ` between neighbouring frequencies. Infinite
+    /// where `J^T J` is singular. It covers noise, not a systematic error of the model, and
+    /// it is indicative only: sweep residuals are also heteroscedastic (noisier where the
+    /// loaded response is weak) and correlated beyond one lag, and in the simulated tests
+    /// the actual errors reached up to about four times this figure.
     pub relative_std: [f64; 3],
 }
 
@@ -656,7 +661,18 @@ pub fn fit_limb(
     let rms_error_db = (2.0 * sol.cost / m as f64).sqrt();
     let mut jac = DMatrix::zeros(m, n);
     problem.jacobian(&sol.x, &mut jac);
-    let sigma2 = 2.0 * sol.cost / (m - n).max(1) as f64;
+    // Sweep residuals are correlated between neighbouring frequencies (the impulse
+    // response window smooths the spectrum), which the independent-noise formula ignores;
+    // an AR(1) correction `(1 + ρ)/(1 − ρ)`, with `ρ` the residuals' lag-one correlation,
+    // accounts for the fewer independent points.
+    let r = &sol.residuals;
+    let r0: f64 = r.iter().map(|v| v * v).sum();
+    let rho = if r0 > 0.0 {
+        (r.windows(2).map(|w| w[0] * w[1]).sum::<f64>() / r0).clamp(0.0, 0.95)
+    } else {
+        0.0
+    };
+    let sigma2 = 2.0 * sol.cost / (m - n).max(1) as f64 * (1.0 + rho) / (1.0 - rho);
     let relative_std = match (jac.transpose() * &jac).try_inverse() {
         Some(inv) => [0, 1, 2].map(|i| (sigma2 * inv[(i, i)]).max(0.0).sqrt()),
         None => [f64::INFINITY; 3],
@@ -932,8 +948,12 @@ mod tests {
 
     /// Loaded over unloaded, in dB, from noisy sweeps of the simulated tile and user.
     fn measured_ratio(p: LimbParams, seed: u64) -> (Vec<Hz>, Vec<f64>) {
+        measured_ratio_at(p, seed, -40.0)
+    }
+
+    fn measured_ratio_at(p: LimbParams, seed: u64, noise_db: f64) -> (Vec<Hz>, Vec<f64>) {
         let tile_cfg = TileConfig {
-            noise: Some(Decibels(-40.0)),
+            noise: Some(Decibels(noise_db)).filter(|n| n.0.is_finite()),
             seed,
             ..TileConfig::default()
         };
@@ -958,14 +978,14 @@ mod tests {
     #[test]
     fn acceptance_fit_recovers_simulated_users_from_noisy_sweeps() {
         let mut failures = Vec::new();
-        for (name, p) in users() {
+        for ((name, p), seed) in users().into_iter().flat_map(|u| [(u, 7), (u, 8)]) {
             let m = model(p);
             let skin = BAND
                 .log_grid(256)
                 .iter()
                 .map(|&f| (20.0 * (m.response(f).norm() / m.h_l(f).norm()).log10()).abs())
                 .fold(0.0, f64::max);
-            let (freqs, ratio) = measured_ratio(p, 7);
+            let (freqs, ratio) = measured_ratio(p, seed);
             let t0 = std::time::Instant::now();
             let fit = fit_limb(&freqs, &ratio, &LimbFitConfig::default()).unwrap();
             let dt = t0.elapsed();
@@ -976,7 +996,7 @@ mod tests {
                 .map(|(g, w)| 100.0 * (g / w - 1.0))
                 .collect();
             eprintln!(
-                "{name}: skin term up to {skin:.2} dB; fit {got:?}, error % {err:.2?}, \
+                "{name} (seed {seed}): skin term up to {skin:.2} dB; fit {got:?}, error % {err:.2?}, \
                  predicted 1-sigma % {:.2?}, rms {:.3} dB, level {:.3} dB, {} iterations \
                  ({} over {} starts), {:.1} ms",
                 fit.relative_std.map(|s| 100.0 * s),
@@ -994,5 +1014,38 @@ mod tests {
             }
         }
         assert!(failures.is_empty(), "{failures:?}");
+    }
+
+    /// How recovery degrades with sensor noise: the leg's time constant, which shapes the
+    /// whole slope, stays well determined; the skin's parameters, which only show as a
+    /// ripple of tenths of a dB, go first. Checks that the predicted 1-σ uncertainty
+    /// tracks the actual error.
+    #[test]
+    fn recovery_against_noise_level() {
+        let p = LimbParams::TABLE1_MEAN;
+        for noise in [f64::NEG_INFINITY, -40.0, -30.0, -20.0] {
+            let (freqs, ratio) = measured_ratio_at(p, 11, noise);
+            let fit = fit_limb(&freqs, &ratio, &LimbFitConfig::default()).unwrap();
+            let err = fit
+                .model
+                .params
+                .to_array()
+                .iter()
+                .zip(p.to_array())
+                .map(|(g, w)| 100.0 * (g / w - 1.0))
+                .collect::<Vec<f64>>();
+            let sd = fit.relative_std.map(|s| 100.0 * s);
+            eprintln!(
+                "noise {noise} dB: rms {:.3} dB, error % {err:.2?}, predicted 1-sigma % {sd:.2?}",
+                fit.rms_error_db
+            );
+            assert!(err[0].abs() < 5.0, "{err:?}");
+            // The uncertainty is indicative (see `LimbFit::relative_std`), hence 5 σ; the
+            // 1.5 % covers the simulation's own systematic error (the noiseless row): the
+            // bilinear user is not exactly the analog model that is fitted.
+            for (e, s) in err.iter().zip(sd) {
+                assert!(e.abs() < 5.0 * s + 1.5, "{err:?} vs {sd:?}");
+            }
+        }
     }
 }
