@@ -913,6 +913,44 @@ mod tests {
     }
 
     #[test]
+    fn fixed_level_fit() {
+        let m = model(LimbParams::TABLE1_MEAN);
+        let freqs = BAND.log_grid(64);
+        let y: Vec<f64> = freqs
+            .iter()
+            .map(|&f| 20.0 * m.response(f).norm().log10())
+            .collect();
+        let cfg = LimbFitConfig {
+            fit_level: false,
+            ..LimbFitConfig::default()
+        };
+        let fit = fit_limb(&freqs, &y, &cfg).unwrap();
+        assert_eq!(fit.model.level, 1.0);
+        for (g, w) in fit.model.params.to_array().iter().zip(m.params.to_array()) {
+            assert!((g / w - 1.0).abs() < 1e-6, "{g} vs {w}");
+        }
+    }
+
+    #[test]
+    fn simulated_user_measures_as_its_oracle() {
+        let sweep = Sweep::new(SweepConfig::new(RATE)).unwrap();
+        let mut user =
+            SimulatedUser::new(&TileConfig::default(), model(LimbParams::TABLE1_MEAN), RATE)
+                .unwrap();
+        let fr = measure(&mut user, &sweep).unwrap();
+        let worst = fr
+            .freqs
+            .iter()
+            .zip(&fr.response)
+            .map(|(&f, h)| (20.0 * (h.norm() / user.true_response(f).norm()).log10()).abs())
+            .fold(0.0, f64::max);
+        eprintln!("simulated user: measured vs oracle, max {worst:.4} dB");
+        assert!(worst < 0.1, "{worst}");
+        assert_eq!(user.limb().params, LimbParams::TABLE1_MEAN);
+        assert!(user.limb_sos().is_stable());
+    }
+
+    #[test]
     fn bad_fit_inputs_are_errors() {
         let freqs = BAND.log_grid(10);
         let y = vec![0.0; 10];
