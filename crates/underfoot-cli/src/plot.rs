@@ -798,6 +798,143 @@ fn draw_spectrogram_on<DB: DrawingBackend>(
     Ok(())
 }
 
+/// One curve of a response plot: a label, frequencies, dB values, and a colour index.
+pub struct Curve<'a> {
+    pub label: String,
+    pub freqs_hz: &'a [f64],
+    pub db: &'a [f64],
+}
+
+/// Colours of successive curves: black first (the measurement or the first pass), then a
+/// qualitative palette (Okabe-Ito, readable by colour-blind eyes).
+const CURVE_COLOURS: [RGBColor; 6] = [
+    RGBColor(0, 0, 0),
+    RGBColor(0xD5, 0x5E, 0x00),
+    RGBColor(0x00, 0x72, 0xB2),
+    RGBColor(0x00, 0x9E, 0x73),
+    RGBColor(0xCC, 0x79, 0xA7),
+    RGBColor(0xE6, 0x9F, 0x00),
+];
+
+/// Draws magnitude responses (dB on a log-frequency axis) in one panel: an equalizer's
+/// passes against flat, or a limb model against its measurement.
+pub fn draw_responses(path: &Path, title: &str, curves: &[Curve<'_>]) -> anyhow::Result<Omitted> {
+    let format = Format::of(path)?;
+    let show_text = format == Format::Svg || font()?.is_some();
+    if curves.is_empty() || curves.iter().any(|c| c.freqs_hz.len() < 2) {
+        bail!("nothing to plot in {}", path.display());
+    }
+    let failed = |e: String| anyhow::anyhow!("drawing {}: {e}", path.display());
+    match format {
+        Format::Svg => {
+            let root = SVGBackend::new(path, PANEL_SIZE).into_drawing_area();
+            draw_response_panel(&root, title, curves, show_text).map_err(failed)
+        }
+        Format::Png => {
+            let root = BitMapBackend::new(path, PANEL_SIZE).into_drawing_area();
+            draw_response_panel(&root, title, curves, show_text).map_err(failed)
+        }
+    }
+    .with_context(|| format!("writing plot {}", path.display()))?;
+    Ok(if show_text {
+        Omitted::Nothing
+    } else {
+        Omitted::Text
+    })
+}
+
+fn draw_response_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    title: &str,
+    curves: &[Curve<'_>],
+    show_text: bool,
+) -> Result<(), String> {
+    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    area.fill(&WHITE).map_err(e)?;
+    let ink = if show_text {
+        BLACK.to_rgba()
+    } else {
+        TRANSPARENT
+    };
+    let text = |size: f64| (FAMILY, size).into_font().color(&ink);
+    let values = curves
+        .iter()
+        .flat_map(|c| c.db.iter().copied())
+        .filter(|v| v.is_finite());
+    let top = values.clone().fold(f64::NEG_INFINITY, f64::max);
+    let low = values.fold(f64::INFINITY, f64::min).max(top - FLOOR_DB);
+    // At least ±3 dB around the curves, so a flat response looks flat, not magnified.
+    let mid = 0.5 * (top + low);
+    let half = (0.5 * (top - low) + 1.0).max(3.0);
+    let (floor, top) = (mid - half, mid + half);
+    let lo = curves
+        .iter()
+        .map(|c| c.freqs_hz[0])
+        .fold(f64::INFINITY, f64::min);
+    let hi = curves
+        .iter()
+        .map(|c| c.freqs_hz[c.freqs_hz.len() - 1])
+        .fold(f64::NEG_INFINITY, f64::max);
+    let (w, _) = area.dim_in_pixel();
+    let row_y = (TITLE_HEIGHT / 2) as i32;
+    let style = |i: usize| CURVE_COLOURS[i % CURVE_COLOURS.len()].stroke_width(2);
+    if show_text {
+        area.draw(&Text::new(
+            title.to_string(),
+            (12, row_y),
+            text(17.0).pos(Pos::new(HPos::Left, VPos::Center)),
+        ))
+        .map_err(e)?;
+        let first = w as i32 - 150 * curves.len() as i32;
+        for (i, c) in curves.iter().enumerate() {
+            let x = first + 150 * i as i32;
+            area.draw(&PathElement::new(
+                vec![(x, row_y), (x + 20, row_y)],
+                style(i),
+            ))
+            .map_err(e)?;
+            area.draw(&Text::new(
+                c.label.clone(),
+                (x + 25, row_y),
+                text(13.0).pos(Pos::new(HPos::Left, VPos::Center)),
+            ))
+            .map_err(e)?;
+        }
+    }
+    let axis_lo = 10f64.powf(lo.log10().floor());
+    let mut chart = ChartBuilder::on(&area.margin(TITLE_HEIGHT, 8, 8, 18))
+        .x_label_area_size(44)
+        .y_label_area_size(58)
+        .build_cartesian_2d((axis_lo..hi).log_scale(), floor..top)
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc("frequency (Hz)")
+        .y_desc("magnitude (dB)")
+        .label_style(text(13.0))
+        .axis_desc_style(text(14.0))
+        .x_labels(30)
+        .x_label_formatter(&|f| one_two_five(*f))
+        .y_label_formatter(&|v| format!("{v:.0}"))
+        .light_line_style(BLACK.mix(0.06))
+        .bold_line_style(BLACK.mix(0.15))
+        .draw()
+        .map_err(e)?;
+    for (i, c) in curves.iter().enumerate() {
+        let points: Vec<(f64, f64)> = c
+            .freqs_hz
+            .iter()
+            .zip(c.db)
+            .filter(|(_, v)| v.is_finite())
+            .map(|(&f, &v)| (f, v.clamp(floor, top)))
+            .collect();
+        chart
+            .draw_series(LineSeries::new(points, style(i)))
+            .map_err(e)?;
+    }
+    area.present().map_err(e)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1141,139 +1278,3 @@ mod tests {
     }
 }
 
-/// One curve of a response plot: a label, frequencies, dB values, and a colour index.
-pub struct Curve<'a> {
-    pub label: String,
-    pub freqs_hz: &'a [f64],
-    pub db: &'a [f64],
-}
-
-/// Colours of successive curves: black first (the measurement or the first pass), then a
-/// qualitative palette (Okabe-Ito, readable by colour-blind eyes).
-const CURVE_COLOURS: [RGBColor; 6] = [
-    RGBColor(0, 0, 0),
-    RGBColor(0xD5, 0x5E, 0x00),
-    RGBColor(0x00, 0x72, 0xB2),
-    RGBColor(0x00, 0x9E, 0x73),
-    RGBColor(0xCC, 0x79, 0xA7),
-    RGBColor(0xE6, 0x9F, 0x00),
-];
-
-/// Draws magnitude responses (dB on a log-frequency axis) in one panel: an equalizer's
-/// passes against flat, or a limb model against its measurement.
-pub fn draw_responses(path: &Path, title: &str, curves: &[Curve<'_>]) -> anyhow::Result<Omitted> {
-    let format = Format::of(path)?;
-    let show_text = format == Format::Svg || font()?.is_some();
-    if curves.is_empty() || curves.iter().any(|c| c.freqs_hz.len() < 2) {
-        bail!("nothing to plot in {}", path.display());
-    }
-    let failed = |e: String| anyhow::anyhow!("drawing {}: {e}", path.display());
-    match format {
-        Format::Svg => {
-            let root = SVGBackend::new(path, PANEL_SIZE).into_drawing_area();
-            draw_response_panel(&root, title, curves, show_text).map_err(failed)
-        }
-        Format::Png => {
-            let root = BitMapBackend::new(path, PANEL_SIZE).into_drawing_area();
-            draw_response_panel(&root, title, curves, show_text).map_err(failed)
-        }
-    }
-    .with_context(|| format!("writing plot {}", path.display()))?;
-    Ok(if show_text {
-        Omitted::Nothing
-    } else {
-        Omitted::Text
-    })
-}
-
-fn draw_response_panel<DB: DrawingBackend>(
-    area: &DrawingArea<DB, Shift>,
-    title: &str,
-    curves: &[Curve<'_>],
-    show_text: bool,
-) -> Result<(), String> {
-    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
-    area.fill(&WHITE).map_err(e)?;
-    let ink = if show_text {
-        BLACK.to_rgba()
-    } else {
-        TRANSPARENT
-    };
-    let text = |size: f64| (FAMILY, size).into_font().color(&ink);
-    let values = curves
-        .iter()
-        .flat_map(|c| c.db.iter().copied())
-        .filter(|v| v.is_finite());
-    let top = values.clone().fold(f64::NEG_INFINITY, f64::max);
-    let low = values.fold(f64::INFINITY, f64::min).max(top - FLOOR_DB);
-    // At least ±3 dB around the curves, so a flat response looks flat, not magnified.
-    let mid = 0.5 * (top + low);
-    let half = (0.5 * (top - low) + 1.0).max(3.0);
-    let (floor, top) = (mid - half, mid + half);
-    let lo = curves
-        .iter()
-        .map(|c| c.freqs_hz[0])
-        .fold(f64::INFINITY, f64::min);
-    let hi = curves
-        .iter()
-        .map(|c| c.freqs_hz[c.freqs_hz.len() - 1])
-        .fold(f64::NEG_INFINITY, f64::max);
-    let (w, _) = area.dim_in_pixel();
-    let row_y = (TITLE_HEIGHT / 2) as i32;
-    let style = |i: usize| CURVE_COLOURS[i % CURVE_COLOURS.len()].stroke_width(2);
-    if show_text {
-        area.draw(&Text::new(
-            title.to_string(),
-            (12, row_y),
-            text(17.0).pos(Pos::new(HPos::Left, VPos::Center)),
-        ))
-        .map_err(e)?;
-        let first = w as i32 - 150 * curves.len() as i32;
-        for (i, c) in curves.iter().enumerate() {
-            let x = first + 150 * i as i32;
-            area.draw(&PathElement::new(
-                vec![(x, row_y), (x + 20, row_y)],
-                style(i),
-            ))
-            .map_err(e)?;
-            area.draw(&Text::new(
-                c.label.clone(),
-                (x + 25, row_y),
-                text(13.0).pos(Pos::new(HPos::Left, VPos::Center)),
-            ))
-            .map_err(e)?;
-        }
-    }
-    let axis_lo = 10f64.powf(lo.log10().floor());
-    let mut chart = ChartBuilder::on(&area.margin(TITLE_HEIGHT, 8, 8, 18))
-        .x_label_area_size(44)
-        .y_label_area_size(58)
-        .build_cartesian_2d((axis_lo..hi).log_scale(), floor..top)
-        .map_err(e)?;
-    chart
-        .configure_mesh()
-        .x_desc("frequency (Hz)")
-        .y_desc("magnitude (dB)")
-        .label_style(text(13.0))
-        .axis_desc_style(text(14.0))
-        .x_labels(30)
-        .x_label_formatter(&|f| one_two_five(*f))
-        .y_label_formatter(&|v| format!("{v:.0}"))
-        .light_line_style(BLACK.mix(0.06))
-        .bold_line_style(BLACK.mix(0.15))
-        .draw()
-        .map_err(e)?;
-    for (i, c) in curves.iter().enumerate() {
-        let points: Vec<(f64, f64)> = c
-            .freqs_hz
-            .iter()
-            .zip(c.db)
-            .filter(|(_, v)| v.is_finite())
-            .map(|(&f, &v)| (f, v.clamp(floor, top)))
-            .collect();
-        chart
-            .draw_series(LineSeries::new(points, style(i)))
-            .map_err(e)?;
-    }
-    area.present().map_err(e)
-}

@@ -10,12 +10,12 @@
 //! | recordings | [`recording`] | decode WAV/FLAC/Ogg/CSV, find each heel strike's onset |
 //! | signal conditioning | [`signal`] | resample, Savitzky-Golay, Butterworth SOS, zero-phase filtering, spectra |
 //! | analysis | [`analysis`] | the measured response of a material: RMS-averaged, 1/6-octave smoothed strike spectra |
-//! | fitting | [`fit`] | IIR fits to a measured response: Levi, vector fitting, damped Gauss-Newton, order search |
+//! | fitting | [`fit`] | IIR fits to a measured response: Levi, vector fitting, damped Gauss-Newton, order search; bounded least squares (trust-region-reflective) |
 //! | material models | [`material`] | the material model, the versioned library file, the built-in presets |
 //! | physical models | [`physical`] | a hammer striking a surface of damped modes: Hunt-Crossley contact, impulse-invariant modes; aggregates as Poisson micro-impacts; calibration from recordings |
 //! | force | [`force`] | sensor readings, force tracks (CSV), the walking gait, heel strikes, the drive signal |
 //! | synthesis | [`synthesis`] | a material's modes at the audio rate; the voice with its per-step perturbation |
-//! | compensation | [`compensation`] | a device's response from sine sweeps (or a simulated tile); the FFT filter-bank equalizer |
+//! | compensation | [`compensation`] | a device's response from sine sweeps (or a simulated tile); the FFT filter-bank equalizer; the lower-limb model, its fit and inverse; the table of users |
 //! | safety | [`safety`] | hard limiter, input watchdog, start/stop fades |
 //! | engine | [`engine`] | N channels in real time: lock-free events, no allocation in the callback; offline renders |
 //! | device I/O | [`io`] | CSV replay, serial, OSC in; WAV and audio devices (cpal) out, each behind a feature |

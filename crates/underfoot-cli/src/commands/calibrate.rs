@@ -7,12 +7,15 @@ use clap::{Args, Subcommand};
 use underfoot::compensation::equalizer::{
     Equalized, EqualizerConfig, EqualizerFilter, PassReport, Realisation, equalize,
 };
-use underfoot::compensation::files::{self, EqualizerFile, PassFigures, ResponseFile};
+use underfoot::compensation::files::{self, EqualizerFile, LimbFile, PassFigures, ResponseFile};
+use underfoot::compensation::limb::{
+    DEFAULT_G2, LimbFitConfig, LimbModel, LimbParams, SimulatedUser, fit_limb,
+};
 use underfoot::compensation::sweep::{
     Device, FrequencyResponse, MeasuredDevice, SimulatedTile, Sweep, SweepConfig, TileConfig,
     measure,
 };
-use underfoot::units::{Band, Decibels, SampleRate, Seconds};
+use underfoot::units::{Band, Decibels, Hz, SampleRate, Seconds};
 
 use crate::output::emit;
 use crate::plot::{Curve, Omitted, draw_responses};
@@ -25,6 +28,8 @@ pub enum CalibrateCommand {
     Sweep(SweepArgs),
     /// Tune the device equalizer by successive sweeps (the paper's equations 4-5).
     Equalize(EqualizeArgs),
+    /// Fit a user's rheological limb model (equations 1-3) to loaded sweeps.
+    Limb(LimbArgs),
 }
 
 /// Where sweeps are played and recorded.
@@ -74,6 +79,10 @@ pub struct SweepSettings {
     /// Simulated device only: seed of the noise.
     #[arg(long, default_value_t = 0x5EED, value_name = "N")]
     pub seed: u64,
+    /// Simulated device only: a user standing on it, `table1` (Table 1's mean user),
+    /// `B3K3,K2M2,B2M2`, or a limb file.
+    #[arg(long, value_name = "USER", value_parser = parse_user)]
+    pub load: Option<UserArg>,
 }
 
 impl SweepSettings {
@@ -106,13 +115,29 @@ impl SweepSettings {
                     seed: self.seed,
                     ..TileConfig::default()
                 };
-                let tile = SimulatedTile::new(&cfg, rate).context("the simulated tile")?;
-                Ok((
-                    Box::new(tile),
-                    format!("simulated tile, {} dB sensor noise", self.noise_db),
-                ))
+                let noise = format!("{} dB sensor noise", self.noise_db);
+                match &self.load {
+                    None => {
+                        let tile =
+                            SimulatedTile::new(&cfg, rate).context("the simulated tile")?;
+                        Ok((Box::new(tile), format!("simulated tile, {noise}")))
+                    }
+                    Some(user) => {
+                        let (model, who) = user.model()?;
+                        let device = SimulatedUser::new(&cfg, model, rate)
+                            .context("the simulated user")?;
+                        Ok((
+                            Box::new(device),
+                            format!("simulated tile loaded by {who}, {noise}"),
+                        ))
+                    }
+                }
             }
             DeviceArg::Measured(path) => {
+                anyhow::ensure!(
+                    self.load.is_none(),
+                    "--load simulates a user on the simulated tile; a replayed measurement already holds its load"
+                );
                 let file: ResponseFile = files::load(path)?;
                 anyhow::ensure!(
                     file.rate == rate,
@@ -184,11 +209,176 @@ pub struct EqualizeArgs {
     pub settings: SweepSettings,
 }
 
+/// `underfoot calibrate limb`.
+#[derive(Debug, Clone, Args)]
+pub struct LimbArgs {
+    /// Responses measured with the user standing on the device (`calibrate sweep` files),
+    /// averaged in dB. Measured through the equalizer, or divided by `--unloaded`.
+    #[arg(long, value_name = "FILE", num_args = 1.., required = true)]
+    pub sweeps: Vec<PathBuf>,
+    /// The unloaded device's response, measured the same way, to divide by.
+    #[arg(long, value_name = "FILE")]
+    pub unloaded: Option<PathBuf>,
+    /// Where to write the limb model (JSON).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Also draw the model against the measurement (.svg or .png).
+    #[arg(long, value_name = "FILE")]
+    pub plot: Option<PathBuf>,
+}
+
+/// A user: a limb file, Table 1's mean (`table1`), or three parameters.
+#[derive(Debug, Clone)]
+pub enum UserArg {
+    Params(LimbParams),
+    File(PathBuf),
+}
+
+pub fn parse_user(s: &str) -> Result<UserArg, String> {
+    if s == "table1" {
+        return Ok(UserArg::Params(LimbParams::TABLE1_MEAN));
+    }
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() == 3 {
+        let values: Result<Vec<f64>, _> = parts.iter().map(|p| p.trim().parse::<f64>()).collect();
+        if let Ok(v) = values {
+            let params = LimbParams::from_array([v[0], v[1], v[2]]);
+            params
+                .validate()
+                .map_err(|e| format!("{s:?}: {e}"))?;
+            return Ok(UserArg::Params(params));
+        }
+    }
+    Ok(UserArg::File(PathBuf::from(s)))
+}
+
+impl UserArg {
+    /// The limb model, and who it is for messages.
+    pub fn model(&self) -> anyhow::Result<(LimbModel, String)> {
+        match self {
+            UserArg::Params(p) => Ok((
+                LimbModel::new(*p, DEFAULT_G2, 1.0)?,
+                format!(
+                    "a user with b3/k3 = {}, k2/m2 = {}, b2/m2 = {}",
+                    p.b3_k3, p.k2_m2, p.b2_m2
+                ),
+            )),
+            UserArg::File(path) => {
+                let file: LimbFile = files::load(path)?;
+                Ok((file.model, path.display().to_string()))
+            }
+        }
+    }
+
+    /// The band its compensation covers: the file's, or the default sweep band.
+    pub fn band(&self) -> anyhow::Result<Band> {
+        match self {
+            UserArg::Params(_) => Ok(Band::new(40.0, 1024.0)),
+            UserArg::File(path) => Ok(files::load::<LimbFile>(path)?.band),
+        }
+    }
+}
+
 pub fn run(cmd: &CalibrateCommand) -> anyhow::Result<()> {
     match cmd {
         CalibrateCommand::Sweep(args) => sweep(args),
         CalibrateCommand::Equalize(args) => equalize_cmd(args),
+        CalibrateCommand::Limb(args) => limb(args),
     }
+}
+
+fn limb(args: &LimbArgs) -> anyhow::Result<()> {
+    let loaded: Vec<ResponseFile> = args
+        .sweeps
+        .iter()
+        .map(|p| files::load(p))
+        .collect::<Result<_, _>>()?;
+    let first = &loaded[0];
+    for (file, path) in loaded.iter().zip(&args.sweeps) {
+        anyhow::ensure!(
+            file.freqs_hz == first.freqs_hz,
+            "{} is on another frequency grid than {}; measure with the same sweep settings",
+            path.display(),
+            args.sweeps[0].display()
+        );
+    }
+    let mut db: Vec<f64> = (0..first.freqs_hz.len())
+        .map(|i| loaded.iter().map(|f| f.magnitude_db[i]).sum::<f64>() / loaded.len() as f64)
+        .collect();
+    let mut description = format!(
+        "{} loaded sweep(s): {}",
+        loaded.len(),
+        args.sweeps
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    if let Some(path) = &args.unloaded {
+        let unloaded: ResponseFile = files::load(path)?;
+        anyhow::ensure!(
+            unloaded.freqs_hz == first.freqs_hz,
+            "{} is on another frequency grid than the loaded sweeps",
+            path.display()
+        );
+        for (d, u) in db.iter_mut().zip(&unloaded.magnitude_db) {
+            *d -= u;
+        }
+        description.push_str(&format!(", over unloaded {}", path.display()));
+    }
+    let freqs: Vec<Hz> = first.freqs_hz.iter().map(|&f| Hz(f)).collect();
+    let started = std::time::Instant::now();
+    let fit = fit_limb(&freqs, &db, &LimbFitConfig::default()).context("fitting the limb model")?;
+    let seconds = started.elapsed().as_secs_f64();
+    let p = fit.model.params;
+    let file = LimbFile::new(fit.model, first.band, fit.rms_error_db, description);
+    files::save(&args.out, &file)?;
+    let pct = |i: usize| {
+        let s = fit.relative_std[i];
+        if s.is_finite() {
+            format!("±{:.1}%", 100.0 * s)
+        } else {
+            "-".to_string()
+        }
+    };
+    emit(&format!(
+        "limb model of {} ({:.2} s, {} starts)\n  b3/k3 = {:.5} s ({}; leg corner {:.1} Hz)\n  k2/m2 = {:.4e} s^-2 ({}; skin resonance {:.0} Hz)\n  b2/m2 = {:.1} s^-1 ({})\n  level {:.2} dB, residual {:.3} dB RMS\nwrote {}\n",
+        file.description,
+        seconds,
+        fit.starts,
+        p.b3_k3,
+        pct(0),
+        p.leg_corner().0,
+        p.k2_m2,
+        pct(1),
+        p.skin_resonance().0,
+        p.b2_m2,
+        pct(2),
+        20.0 * fit.model.level.log10(),
+        fit.rms_error_db,
+        args.out.display()
+    ))?;
+    if let Some(plot) = &args.plot {
+        let f: Vec<f64> = first.freqs_hz.clone();
+        let model: Vec<f64> = freqs
+            .iter()
+            .map(|&x| 20.0 * fit.model.response(x).norm().log10())
+            .collect();
+        let curves = [
+            Curve {
+                label: "measured".into(),
+                freqs_hz: &f,
+                db: &db,
+            },
+            Curve {
+                label: "limb model".into(),
+                freqs_hz: &f,
+                db: &model,
+            },
+        ];
+        plotted(plot, draw_responses(plot, "Loaded response and the limb model H_u", &curves)?)?;
+    }
+    Ok(())
 }
 
 fn sweep(args: &SweepArgs) -> anyhow::Result<()> {

@@ -373,7 +373,7 @@ pub struct EqualizerFilter {
 enum Inner {
     Bank(Box<FilterBank>),
     LowDelay {
-        fir: Fir,
+        fir: Box<Fir>,
         designer: Box<MinPhaseDesigner>,
         taps: Vec<f64>,
         /// The weights being realised, copied so `set_weights` never allocates.
@@ -414,7 +414,7 @@ impl EqualizerFilter {
                     });
                 }
                 Inner::LowDelay {
-                    fir: Fir::new(&coefficients)?,
+                    fir: Box::new(Fir::new(&coefficients)?),
                     designer,
                     taps: coefficients,
                     weights: w,
@@ -705,7 +705,7 @@ fn solve_spd(a: &mut [f64], b: &mut [f64], n: usize) -> Option<Vec<f64>> {
         for k in 0..j {
             d -= a[j * n + k] * a[j * n + k];
         }
-        if !(d > 0.0) {
+        if d.is_nan() || d <= 0.0 {
             return None;
         }
         let d = d.sqrt();
@@ -795,7 +795,6 @@ mod tests {
                 .map(|p| (p.deviation.0, p.peak.0))
                 .collect();
             eprintln!("{realisation:?}: {figures:?}");
-            let last = eq.passes.last().unwrap();
             let last = eq.passes.last().unwrap();
             assert!(eq.passes[0].deviation.0 > 2.0);
             assert!(last.deviation.0 < 0.28, "{realisation:?}: {figures:?}");

@@ -1,5 +1,5 @@
 //! The files of the compensation workflow: a measured response, an equalizer, a user's
-//! limb model. Each is JSON with a `kind` and a `version`, checked on load before
+//! limb model, and the table of users ([`table`](mod@super::table)). Each is JSON with a `kind` and a `version`, checked on load before
 //! anything else, so that handing one command another command's file, or a file from a
 //! newer version, gets a message saying so. Writes go to a temporary file renamed over the
 //! target, so a failed write never destroys a file that was there.
@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use super::CompensationError;
 use super::equalizer::{PassReport, Realisation, SpectralWeights};
+use super::limb::LimbModel;
 use super::sweep::FrequencyResponse;
 use crate::material::library::write_atomic;
 use crate::units::{Band, Hz, SampleRate};
@@ -263,6 +264,54 @@ impl Document for EqualizerFile {
                     expected: "1 to 65536",
                 });
             }
+        }
+        Ok(())
+    }
+}
+
+/// A user's fitted limb model (`underfoot calibrate limb`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LimbFile {
+    /// Always `"limb-model"`.
+    pub kind: String,
+    /// [`FORMAT_VERSION`].
+    pub version: u32,
+    /// Whose limb, measured how, for people.
+    pub description: String,
+    /// The fitted model.
+    pub model: LimbModel,
+    /// The band it was fitted over, and that its compensation covers.
+    pub band: Band,
+    /// RMS of the fit's residuals, in dB.
+    pub rms_error_db: f64,
+}
+
+impl LimbFile {
+    /// A file for `model`.
+    #[must_use]
+    pub fn new(model: LimbModel, band: Band, rms_error_db: f64, description: impl Into<String>) -> Self {
+        Self {
+            kind: Self::KIND.to_string(),
+            version: FORMAT_VERSION,
+            description: description.into(),
+            model,
+            band,
+            rms_error_db,
+        }
+    }
+}
+
+impl Document for LimbFile {
+    const KIND: &'static str = "limb-model";
+
+    fn validate(&self) -> Result<(), CompensationError> {
+        self.model.validate()?;
+        if !(self.band.lo.0 > 0.0 && self.band.hi.0 > self.band.lo.0 && self.band.hi.0.is_finite()) {
+            return Err(CompensationError::InvalidParameter {
+                name: "band",
+                value: self.band.lo.0,
+                expected: "0 < lo < hi",
+            });
         }
         Ok(())
     }

@@ -14,7 +14,12 @@
 //! - [`files`]: the measured responses, equalizers and limb models the workflow
 //!   writes, versioned and written atomically;
 //! - [`chain`]: the equalizer and limb filter as the engine runs them on each channel,
-//!   before the limiter.
+//!   before the limiter;
+//! - [`limb`]: the rheological model of the lower limb (equations (1)-(3)), its bounded
+//!   fit to a loaded-over-unloaded sweep, its inverse `Z_c` as a compensation filter, and a
+//!   simulated user standing on the simulated tile;
+//! - [`table`]: the table of users: each user's equalizer curve, interpolated for a new
+//!   user's limb parameters, stored as versioned JSON.
 //!
 //! Set-up allocates; the per-sample paths never do.
 
@@ -23,7 +28,11 @@ pub mod equalizer;
 pub mod files;
 pub mod filterbank;
 pub mod fir;
+pub mod limb;
 pub mod sweep;
+pub mod table;
+
+use crate::fit::trf::TrfError;
 
 /// What is wrong with a compensation setting or measurement.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -64,5 +73,30 @@ pub enum CompensationError {
         what: &'static str,
         /// Where.
         index: usize,
+    },
+    /// Two inputs that must match in length do not.
+    #[error("{what}: {len} entries, {expected} expected")]
+    Mismatch {
+        /// What does not match.
+        what: &'static str,
+        /// Its length.
+        len: usize,
+        /// The length expected.
+        expected: usize,
+    },
+    /// Something that must hold at least one entry is empty.
+    #[error("{what} is empty")]
+    Empty {
+        /// What is empty.
+        what: &'static str,
+    },
+    /// The bounded least-squares fit could not be run.
+    #[error("fit failed: {0}")]
+    FitFailed(#[source] TrfError),
+    /// A filter that must be stable is not.
+    #[error("unstable: {what}")]
+    Unstable {
+        /// Which filter, and why.
+        what: &'static str,
     },
 }

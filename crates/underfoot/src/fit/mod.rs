@@ -31,6 +31,10 @@
 //!
 //! Every fit also records the plain Levi fit at the same order, so that a report can show
 //! what the refinements bought.
+//!
+//! [`trf`] is a general bounded non-linear least-squares solver (trust-region-reflective),
+//! used where a fit has a few physical parameters with bounds, such as the limb model of
+//! [`crate::compensation::limb`].
 pub mod crumpling;
 pub mod levi;
 pub mod lpc;
@@ -38,6 +42,7 @@ pub mod metrics;
 pub mod refine;
 pub mod roots;
 pub mod target;
+pub mod trf;
 pub mod vector_fit;
 
 pub use metrics::{MetricGrid, Metrics};
