@@ -10,10 +10,13 @@
 //!   simulated tile to measure where no hardware is at hand;
 //! - [`equalizer`]: the spectral weights of the unloaded device, found by successive
 //!   sweeps (equations (4)-(5)), realised by the bank or as a low-delay minimum-phase
-//!   filter ([`fir`]), and the older static inverse FIR for comparison.
+//!   filter ([`fir`]), and the older static inverse FIR for comparison;
+//! - [`adapt`]: the weights kept right while a person stands and walks on the tile, from
+//!   the drive and the accelerometer (Welch H1 estimate of the loaded device).
 //!
 //! Set-up allocates; the per-sample paths never do.
 
+pub mod adapt;
 pub mod equalizer;
 pub mod filterbank;
 pub mod fir;
