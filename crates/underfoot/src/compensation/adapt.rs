@@ -395,7 +395,8 @@ impl Adapter {
         }
         let (newer, older) = self.hist_x.split_at(self.write);
         let power = older.iter().chain(newer).map(|v| v * v).sum::<f64>() / n as f64;
-        if !(power >= self.min_power) {
+        // The history holds only finite values, so the power is a number.
+        if power < self.min_power {
             return false;
         }
         if !transform(
