@@ -122,6 +122,18 @@ fn gait(t: f64) -> (f64, f64) {
 
 #[test]
 fn converges_on_a_simulated_user_and_stays() {
+    let (at, last) = walk(None);
+    // Twice the frame halves the Hann lobe: slower to average, flatter in the end.
+    let (at2, last2) = walk(Some(8192));
+    eprintln!(
+        "frame 4096: settled at {at:.1} s, final {last:.2} dB; 8192: {at2:.1} s, {last2:.2} dB"
+    );
+    assert!(last2 < last);
+}
+
+/// 45 s of walking on the simulated user, from the unloaded equalizer; checks and returns
+/// the time the deviation settled below 1 dB and the final deviation.
+fn walk(frame: Option<usize>) -> (f64, f64) {
     let sweep = Sweep::new(SweepConfig::new(RATE)).unwrap();
     let mut unloaded_for_sweeps = SimulatedTile::new(
         &TileConfig {
@@ -139,7 +151,10 @@ fn converges_on_a_simulated_user_and_stays() {
         3,
     )
     .unwrap();
-    let cfg = AdaptConfig::default();
+    let cfg = AdaptConfig {
+        frame,
+        ..AdaptConfig::default()
+    };
     let mut adapter = Adapter::new(&eq.weights, cfg).unwrap();
     let mut filter = EqualizerFilter::new(adapter.weights(), Realisation::Bank).unwrap();
     let mut limiter = Limiter::new(Decibels(-6.0), Seconds(0.05), RATE);
@@ -206,31 +221,39 @@ fn converges_on_a_simulated_user_and_stays() {
         }
         n += block;
     }
-    let converged = history.iter().position(|&(_, d)| d < 1.0);
+    // Settled: below 1 dB from this update on.
+    let settled = history
+        .iter()
+        .rposition(|&(_, d)| d >= 1.0)
+        .map_or(0, |i| i + 1);
     let final_dev = history.last().map_or(initial, |h| h.1);
+    let late = history
+        .iter()
+        .filter(|h| h.0 > seconds - 15.0)
+        .map(|h| h.1)
+        .fold(0.0, f64::max);
+    // The first update after every 5 s mark.
+    let every_5s: Vec<String> = history
+        .windows(2)
+        .filter(|w| (w[0].0 / 5.0).floor() < (w[1].0 / 5.0).floor())
+        .map(|w| format!("{:.1} s: {:.2}", w[1].0, w[1].1))
+        .collect();
     eprintln!(
-        "unloaded weights: {unloaded_dev:.2} dB on the unloaded tile, {initial:.2} dB on the loaded one; \
-         final {final_dev:.2} dB after {} updates; below 1 dB from {:?} s; \
-         worst after: {:.2} dB; trusted {} bins; worst per-update change {worst_change:.3} dB; \
-         worst in-band mean {worst_mean:.1e} dB; peak {worst_peak:.4} vs ceiling {ceiling:.4} \
-         ({} samples limited)",
+        "frame {frame:?}: unloaded weights: {unloaded_dev:.2} dB on the unloaded tile, {initial:.2} dB on the loaded one; \
+         final {final_dev:.2} dB after {} updates; below 1 dB for good from {:?} s; \
+         worst in the last 15 s {late:.2} dB; trusted {} bins; worst per-update change \
+         {worst_change:.3} dB; worst in-band mean {worst_mean:.1e} dB; peak {worst_peak:.4} vs \
+         ceiling {ceiling:.4} ({} samples limited); {every_5s:?}",
         adapter.updates(),
-        converged.map(|i| history[i].0),
-        converged.map_or(f64::NAN, |i| history[i..]
-            .iter()
-            .map(|h| h.1)
-            .fold(0.0, f64::max)),
+        history.get(settled).map(|h| h.0),
         adapter.trusted_bins(),
         report.limited
     );
     assert!(initial > 2.0, "the load must matter: {initial}");
-    let i = converged.expect("never below 1 dB");
-    assert!(history[i].0 <= 20.0, "too slow: {} s", history[i].0);
-    assert!(
-        history[i..].iter().all(|h| h.1 < 1.0),
-        "diverged after converging: {history:?}"
-    );
-    assert!(final_dev < 0.6, "{final_dev}");
+    let at = history.get(settled).expect("never settled below 1 dB").0;
+    assert!(at <= 20.0, "too slow: {at} s");
+    assert!(late < 0.6 && final_dev < 0.6, "{late} {final_dev}");
+    assert!(report.limited > 0, "the limiter should have worked");
     assert!(worst_peak <= ceiling);
     assert!(worst_change <= cfg.max_change.0 + 1e-9);
     assert!(worst_mean < 1e-9);
@@ -254,7 +277,10 @@ fn converges_on_a_simulated_user_and_stays() {
             )
         })
         .collect();
-    eprintln!("estimate errors over trusted bins: {errors:.2?} dB");
+    eprintln!(
+        "estimate errors over trusted bins below 100 Hz: {:.2?} dB",
+        errors.iter().filter(|e| e.0 < 100.0).collect::<Vec<_>>()
+    );
     let offset = errors
         .iter()
         .filter(|e| (40.0..=1024.0).contains(&e.0))
@@ -267,6 +293,7 @@ fn converges_on_a_simulated_user_and_stays() {
     assert!(offset.0 > -1.5 && offset.1 < 1.5, "{offset:?}");
     let rms = (errors.iter().map(|e| e.1 * e.1).sum::<f64>() / errors.len() as f64).sqrt();
     assert!(rms < 0.25, "{rms}");
+    (at, final_dev)
 }
 
 /// Drive and accel of `seconds` of bursts (on 0.5 s, off 0.5 s) through the loaded
