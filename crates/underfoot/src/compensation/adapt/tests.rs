@@ -503,6 +503,9 @@ fn bad_configs_are_rejected() {
         Err(CompensationError::NonFinite { .. })
     ));
     assert!(Adapter::new(&flat(), ok).is_ok());
+    // It is built on the control thread and moved to the audio thread.
+    fn send<T: Send>() {}
+    send::<Adapter>();
 }
 
 #[test]
