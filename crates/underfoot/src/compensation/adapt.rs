@@ -23,7 +23,8 @@
 //!
 //! with `α = 1 - exp(-(N/2) / (fs · memory))` ([`AdaptConfig::memory`], 3 s of analysed
 //! signal by default: the average forgets a stance that has changed within a few steps,
-//! and holds about a hundred frames, enough for a stable estimate). The loaded device is
+//! and holds about `(2 - α)/α ≈ 140` frames at `N = 4096`, 48 kHz, enough for a stable
+//! estimate). The loaded device is
 //! the H1 estimate and its trust the magnitude-squared coherence:
 //!
 //! $$ \hat D(f) = \frac{S_{xa}(f)}{S_{xx}(f)}, \qquad
@@ -40,9 +41,10 @@
 //! Because the drive is taken *after* the equalizer and the limiter, `D̂` is the device
 //! alone: changing the weights does not change what is being estimated, so old frames
 //! stay valid across updates and the loop has no feedback through the estimate. A delay
-//! between the two signals (audio interface latency) must be removed by the caller;
-//! a misalignment `τ` lowers `γ²` and biases `|D̂|` by about the frame overlap lost,
-//! `1 - τ/N`.
+//! between the two signals (audio interface latency) must be removed by the caller: a
+//! misalignment of `τ` samples lowers `γ²` and biases `|D̂|` low by the Hann window's
+//! normalised autocorrelation at lag `τ`, about `1 - 6.6 (τ/N)²` (-0.2 dB for 5 ms,
+//! -0.8 dB for 10 ms at `N = 4096`, 48 kHz).
 //!
 //! **Resolution.** The Hann window's main lobe spans ±2 bins (±23 Hz for `N = 4096` at
 //! 48 kHz), and `D̂` is the device smoothed over it. Where the response is steep, below
