@@ -254,3 +254,72 @@ fn the_filter_bank_never_allocates_or_frees() {
     }
     assert!(bank.non_finite_inputs() > 0);
 }
+
+#[test]
+fn adapting_the_equalizer_never_allocates_or_frees() {
+    use underfoot::compensation::adapt::{AdaptConfig, Adapter};
+    use underfoot::compensation::equalizer::{
+        EqualizerConfig, EqualizerFilter, Realisation, SpectralWeights,
+    };
+    use underfoot::compensation::sweep::{SimulatedTile, TileConfig};
+    use underfoot::safety::{Limiter, LimiterReport};
+    use underfoot::signal::noise::SplitMix64;
+
+    let rate = SampleRate(48_000);
+    let weights = SpectralWeights::flat(EqualizerConfig::default(), rate).unwrap();
+    let cfg = AdaptConfig {
+        interval: Seconds(0.1),
+        min_frames: 4,
+        ..AdaptConfig::default()
+    };
+    for realisation in [Realisation::Bank, Realisation::default()] {
+        let mut adapter = Adapter::new(&weights, cfg).unwrap();
+        let mut filter = EqualizerFilter::new(adapter.weights(), realisation).unwrap();
+        let mut limiter = Limiter::new(Decibels(-6.0), Seconds(0.05), rate);
+        let mut report = LimiterReport::default();
+        let noise = TileConfig {
+            noise: Some(Decibels(-30.0)),
+            ..TileConfig::default()
+        };
+        let mut tile = SimulatedTile::new(&noise, rate).unwrap();
+        let mut rng = SplitMix64::new(3);
+        let mut input = vec![0.0f32; 512];
+        let mut drive = vec![0.0f32; 512];
+        let mut applied = 0;
+        for block in 0..1500usize {
+            let frames = [1, 7, 64, 512][block % 4];
+            for x in &mut input[..frames] {
+                *x = (0.3 * rng.normal()) as f32;
+            }
+            if block % 97 == 5 {
+                input[0] = f32::NAN;
+            }
+            let (x, y) = (&input[..frames], &mut drive[..frames]);
+            let n = allocations_in(|| {
+                filter.process(x, y);
+                for v in y.iter_mut() {
+                    *v = limiter.tick(*v, &mut report);
+                }
+            });
+            assert_eq!(n, 0, "{realisation:?}: filtering block {block} allocated");
+            // The simulated device allocates its output; it is not on the audio path.
+            let wide: Vec<f64> = drive[..frames].iter().map(|&v| f64::from(v)).collect();
+            let mut accel: Vec<f32> = tile.process(&wide).iter().map(|&v| v as f32).collect();
+            if block % 89 == 3 {
+                accel[0] = f32::INFINITY;
+            }
+            let force = Newtons(if block % 300 < 250 { 600.0 } else { 20.0 });
+            let d = &drive[..frames];
+            let n = allocations_in(|| {
+                if let Some(w) = adapter.push(d, &accel, force) {
+                    assert!(filter.set_weights(w));
+                    applied += 1;
+                }
+            });
+            assert_eq!(n, 0, "{realisation:?}: adapting block {block} allocated");
+        }
+        assert!(applied >= 5, "{realisation:?}: {applied} updates");
+        assert!(adapter.non_finite() > 0);
+        assert!(drive.iter().all(|v| v.is_finite()));
+    }
+}

@@ -248,7 +248,7 @@ impl SpectralWeights {
 
     /// The bins that are corrected: those in the band and the one beyond each edge, so
     /// that the interpolation between bins is right up to the edges.
-    fn corrected(&self) -> std::ops::RangeInclusive<usize> {
+    pub(crate) fn corrected(&self) -> std::ops::RangeInclusive<usize> {
         let per_hz = self.config.bins as f64 / self.rate.hz();
         let first = (self.config.band.lo.0 * per_hz).floor() as usize;
         let last = ((self.config.band.hi.0 * per_hz).ceil() as usize).min(self.gains_db.len() - 1);
@@ -256,7 +256,8 @@ impl SpectralWeights {
     }
 
     /// Re-levels to a 0 dB mean over the band, bounds, and rebuilds the out-of-band taper.
-    fn finish(&mut self) {
+    /// Never allocates: the online adapter calls it on the audio thread.
+    pub(crate) fn finish(&mut self) {
         let cfg = self.config;
         let corrected = self.corrected();
         let (first, last) = (*corrected.start(), *corrected.end());

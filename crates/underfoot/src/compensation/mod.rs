@@ -11,18 +11,21 @@
 //! - [`equalizer`]: the spectral weights of the unloaded device, found by successive
 //!   sweeps (equations (4)-(5)), realised by the bank or as a low-delay minimum-phase
 //!   filter ([`fir`]), and the older static inverse FIR for comparison;
-//! - [`files`]: the measured responses, equalizers and limb models the workflow
-//!   writes, versioned and written atomically;
-//! - [`chain`]: the equalizer and limb filter as the engine runs them on each channel,
-//!   before the limiter;
+//! - [`adapt`]: the weights kept right while a person stands and walks on the tile, from
+//!   the drive and the accelerometer (Welch H1 estimate of the loaded device);
 //! - [`limb`]: the rheological model of the lower limb (equations (1)-(3)), its bounded
 //!   fit to a loaded-over-unloaded sweep, its inverse `Z_c` as a compensation filter, and a
 //!   simulated user standing on the simulated tile;
 //! - [`table`]: the table of users: each user's equalizer curve, interpolated for a new
-//!   user's limb parameters, stored as versioned JSON.
+//!   user's limb parameters;
+//! - [`files`]: the measured responses, equalizers, limb models and user tables the
+//!   workflow writes, versioned and written atomically;
+//! - [`chain`]: the equalizer and limb filter as the engine runs them on each channel,
+//!   before the limiter.
 //!
 //! Set-up allocates; the per-sample paths never do.
 
+pub mod adapt;
 pub mod chain;
 pub mod equalizer;
 pub mod files;
