@@ -34,6 +34,9 @@ enum Command {
     /// Measure the device, equalize it, and fit a user's limb model.
     #[command(subcommand)]
     Calibrate(commands::calibrate::CalibrateCommand),
+    /// The table of users' equalizers: add a user, list them.
+    #[command(subcommand, name = "eq-table")]
+    EqTable(commands::eq_table::EqTableCommand),
     /// Render force (a CSV track or a generated walk) to a WAV file of vibration.
     Render(commands::render::RenderArgs),
     /// Run the live engine: force from a replay, serial port or OSC, to a device.
@@ -49,6 +52,7 @@ fn main() -> ExitCode {
         Command::Library(cmd) => commands::library::run(&cmd),
         Command::Compare(args) => commands::compare::run(&args),
         Command::Calibrate(cmd) => commands::calibrate::run(&cmd),
+        Command::EqTable(cmd) => commands::eq_table::run(&cmd),
         Command::Render(args) => commands::render::run(&args),
         Command::Run(args) => commands::run::run(&args),
         Command::Demo(args) => commands::demo::run(&args),

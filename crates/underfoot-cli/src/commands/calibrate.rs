@@ -118,14 +118,13 @@ impl SweepSettings {
                 let noise = format!("{} dB sensor noise", self.noise_db);
                 match &self.load {
                     None => {
-                        let tile =
-                            SimulatedTile::new(&cfg, rate).context("the simulated tile")?;
+                        let tile = SimulatedTile::new(&cfg, rate).context("the simulated tile")?;
                         Ok((Box::new(tile), format!("simulated tile, {noise}")))
                     }
                     Some(user) => {
                         let (model, who) = user.model()?;
-                        let device = SimulatedUser::new(&cfg, model, rate)
-                            .context("the simulated user")?;
+                        let device =
+                            SimulatedUser::new(&cfg, model, rate).context("the simulated user")?;
                         Ok((
                             Box::new(device),
                             format!("simulated tile loaded by {who}, {noise}"),
@@ -243,9 +242,7 @@ pub fn parse_user(s: &str) -> Result<UserArg, String> {
         let values: Result<Vec<f64>, _> = parts.iter().map(|p| p.trim().parse::<f64>()).collect();
         if let Ok(v) = values {
             let params = LimbParams::from_array([v[0], v[1], v[2]]);
-            params
-                .validate()
-                .map_err(|e| format!("{s:?}: {e}"))?;
+            params.validate().map_err(|e| format!("{s:?}: {e}"))?;
             return Ok(UserArg::Params(params));
         }
     }
@@ -376,7 +373,10 @@ fn limb(args: &LimbArgs) -> anyhow::Result<()> {
                 db: &model,
             },
         ];
-        plotted(plot, draw_responses(plot, "Loaded response and the limb model H_u", &curves)?)?;
+        plotted(
+            plot,
+            draw_responses(plot, "Loaded response and the limb model H_u", &curves)?,
+        )?;
     }
     Ok(())
 }

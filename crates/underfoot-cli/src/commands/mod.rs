@@ -1,6 +1,7 @@
 pub mod calibrate;
 pub mod compare;
 pub mod demo;
+pub mod eq_table;
 pub mod fit;
 pub mod library;
 pub mod render;

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::Args;
 use underfoot::compensation::files::{self, EqualizerFile};
+use underfoot::compensation::table::UserTable;
 use underfoot::engine::{EngineConfig, MaterialBank};
 use underfoot::force::drive::DriveKind;
 use underfoot::force::gait::nominal_step;
@@ -13,6 +14,7 @@ use underfoot::material::Library;
 use underfoot::synthesis::{SynthModel, VoiceConfig};
 use underfoot::units::{Decibels, Hz, Newtons, SampleRate};
 
+use crate::commands::calibrate::{UserArg, parse_user};
 use crate::commands::library::open;
 
 fn parse_model(s: &str) -> Result<SynthModel, String> {
@@ -69,6 +71,14 @@ pub struct SynthArgs {
     /// Equalize the device with this equalizer (a `calibrate equalize` file).
     #[arg(long, value_name = "FILE")]
     pub eq: Option<PathBuf>,
+    /// Compensate this user's limb after the equalizer: a `calibrate limb` file, `table1`
+    /// (Table 1's mean user) or `B3K3,K2M2,B2M2`.
+    #[arg(long, value_name = "USER", value_parser = parse_user)]
+    pub user: Option<UserArg>,
+    /// Instead of the limb filter, take the user's equalizer from this table of users
+    /// (`eq-table`), interpolated for their parameters; needs --eq and --user.
+    #[arg(long = "eq-table", value_name = "FILE", requires_all = ["eq", "user"])]
+    pub eq_table: Option<PathBuf>,
 }
 
 /// A library, a bank prepared from it, and the engine settings.
@@ -139,7 +149,29 @@ impl SynthArgs {
                 eq.weights.rate.0,
                 eq.weights.rate.0
             );
-            config.compensation.equalizer = Some((eq.weights, eq.realisation));
+            let mut weights = eq.weights;
+            if let (Some(table), Some(user)) = (&self.eq_table, &self.user) {
+                let users = UserTable::load(table)?;
+                anyhow::ensure!(
+                    users.freqs == weights.frequencies(),
+                    "{} holds curves on another grid than {}",
+                    table.display(),
+                    path.display()
+                );
+                let (model, _) = user.model()?;
+                weights.gains_db = users
+                    .interpolate(&model.params)
+                    .with_context(|| format!("looking the user up in {}", table.display()))?;
+            }
+            config.compensation.equalizer = Some((weights, eq.realisation));
+        }
+        if let (Some(user), None) = (&self.user, &self.eq_table) {
+            let (model, who) = user.model()?;
+            config.compensation.limb = Some(
+                model
+                    .compensation(rate, user.band()?)
+                    .with_context(|| format!("the limb compensation of {who}"))?,
+            );
         }
         config.detector.nominal_loading_rate = config.detector.loading_rate_of(
             &nominal_step(self.weight_kg, 1.8, self.sensor_rate),

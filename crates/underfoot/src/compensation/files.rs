@@ -289,7 +289,12 @@ pub struct LimbFile {
 impl LimbFile {
     /// A file for `model`.
     #[must_use]
-    pub fn new(model: LimbModel, band: Band, rms_error_db: f64, description: impl Into<String>) -> Self {
+    pub fn new(
+        model: LimbModel,
+        band: Band,
+        rms_error_db: f64,
+        description: impl Into<String>,
+    ) -> Self {
         Self {
             kind: Self::KIND.to_string(),
             version: FORMAT_VERSION,
@@ -306,7 +311,8 @@ impl Document for LimbFile {
 
     fn validate(&self) -> Result<(), CompensationError> {
         self.model.validate()?;
-        if !(self.band.lo.0 > 0.0 && self.band.hi.0 > self.band.lo.0 && self.band.hi.0.is_finite()) {
+        if !(self.band.lo.0 > 0.0 && self.band.hi.0 > self.band.lo.0 && self.band.hi.0.is_finite())
+        {
             return Err(CompensationError::InvalidParameter {
                 name: "band",
                 value: self.band.lo.0,

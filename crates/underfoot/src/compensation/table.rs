@@ -92,7 +92,7 @@ impl UserTable {
     ///
     /// # Errors
     /// [`CompensationError::Empty`] for no frequencies,
-    /// [`CompensationError::InvalidParameter`] unless they are finite, positive and
+    /// [`CompensationError::InvalidParameter`] unless they are finite, non-negative and
     /// strictly ascending.
     pub fn new(freqs: Vec<Hz>) -> Result<Self, CompensationError> {
         if freqs.is_empty() {
@@ -100,11 +100,12 @@ impl UserTable {
                 what: "frequency grid",
             });
         }
-        if let Some(f) = freqs.iter().find(|f| !(f.0.is_finite() && f.0 > 0.0)) {
+        // 0 Hz is allowed: an equalizer's bins start at DC.
+        if let Some(f) = freqs.iter().find(|f| !(f.0.is_finite() && f.0 >= 0.0)) {
             return Err(CompensationError::InvalidParameter {
                 name: "freqs",
                 value: f.0,
-                expected: "finite, > 0 Hz",
+                expected: "finite, >= 0 Hz",
             });
         }
         if let Some(w) = freqs.windows(2).find(|w| w[1].0 <= w[0].0) {
@@ -369,7 +370,10 @@ mod tests {
             let err = write(text).unwrap_err().to_string();
             assert!(err.contains(needle), "{needle:?} not in {err:?}");
         };
-        fails_with(&good.replace("\"version\": 1", "\"version\": 2"), "version 2");
+        fails_with(
+            &good.replace("\"version\": 1", "\"version\": 2"),
+            "version 2",
+        );
         fails_with(&good.replace("\"version\": 1,", ""), "version missing");
         fails_with("{ not json", "not JSON");
         // A curve one entry short.
