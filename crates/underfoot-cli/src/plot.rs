@@ -265,6 +265,27 @@ fn draw_panel<DB: DrawingBackend>(
         }
     }
 
+    let mut chart = magnitude_chart(area, (lo, hi), (floor, top), ink)?;
+    chart.draw_series(LineSeries::new(series(&fit.measured), measured_style))?;
+    chart.draw_series(LineSeries::new(series(&fit.model), model_style))?;
+    if let Some(physical) = panel.physical {
+        chart.draw_series(LineSeries::new(series(physical), physical_style))?;
+    }
+    Ok(())
+}
+
+type MagnitudeChart<'a, DB> =
+    ChartContext<'a, DB, Cartesian2d<LogCoord<f64>, plotters::coord::types::RangedCoordf64>>;
+
+/// The frame of a magnitude plot: dB against log-frequency from `lo` to `hi`, with its
+/// mesh and labels drawn.
+fn magnitude_chart<'a, DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    (lo, hi): (f64, f64),
+    (floor, top): (f64, f64),
+    ink: RGBAColor,
+) -> Result<MagnitudeChart<'a, DB>, DrawingAreaErrorKind<DB::ErrorType>> {
+    let text = |size: f64| (FAMILY, size).into_font().color(&ink);
     // plotters puts log-axis key points at powers of ten and their multiples only from the
     // first power of ten inside the range; starting the axis at the decade below the band
     // keeps the band's lowest frequencies labelled (20 and 50 Hz for the default band).
@@ -285,12 +306,7 @@ fn draw_panel<DB: DrawingBackend>(
         .light_line_style(BLACK.mix(0.06))
         .bold_line_style(BLACK.mix(0.15))
         .draw()?;
-    chart.draw_series(LineSeries::new(series(&fit.measured), measured_style))?;
-    chart.draw_series(LineSeries::new(series(&fit.model), model_style))?;
-    if let Some(physical) = panel.physical {
-        chart.draw_series(LineSeries::new(series(physical), physical_style))?;
-    }
-    Ok(())
+    Ok(chart)
 }
 
 /// One labelled stretch of the timeline (e.g. a material of a walk).
@@ -901,25 +917,7 @@ fn draw_response_panel<DB: DrawingBackend>(
             .map_err(e)?;
         }
     }
-    let axis_lo = 10f64.powf(lo.log10().floor());
-    let mut chart = ChartBuilder::on(&area.margin(TITLE_HEIGHT, 8, 8, 18))
-        .x_label_area_size(44)
-        .y_label_area_size(58)
-        .build_cartesian_2d((axis_lo..hi).log_scale(), floor..top)
-        .map_err(e)?;
-    chart
-        .configure_mesh()
-        .x_desc("frequency (Hz)")
-        .y_desc("magnitude (dB)")
-        .label_style(text(13.0))
-        .axis_desc_style(text(14.0))
-        .x_labels(30)
-        .x_label_formatter(&|f| one_two_five(*f))
-        .y_label_formatter(&|v| format!("{v:.0}"))
-        .light_line_style(BLACK.mix(0.06))
-        .bold_line_style(BLACK.mix(0.15))
-        .draw()
-        .map_err(e)?;
+    let mut chart = magnitude_chart(area, (lo, hi), (floor, top), ink).map_err(e)?;
     for (i, c) in curves.iter().enumerate() {
         let points: Vec<(f64, f64)> = c
             .freqs_hz

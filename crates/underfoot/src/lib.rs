@@ -15,7 +15,7 @@
 //! | physical models | [`physical`] | a hammer striking a surface of damped modes: Hunt-Crossley contact, impulse-invariant modes; aggregates as Poisson micro-impacts; calibration from recordings |
 //! | force | [`force`] | sensor readings, force tracks (CSV), the walking gait, heel strikes, the drive signal |
 //! | synthesis | [`synthesis`] | a material's modes at the audio rate; the voice with its per-step perturbation |
-//! | compensation | [`compensation`] | a device's response from sine sweeps (or a simulated tile); the FFT filter-bank equalizer; the lower-limb model, its fit and inverse; the table of users |
+//! | compensation | [`compensation`] | a device's response from sine sweeps (or a simulated tile); the iterative equalizer (filter bank or low-delay minimum-phase filter); the lower-limb model, its fit and inverse; the table of users; online adaptation |
 //! | safety | [`safety`] | hard limiter, input watchdog, start/stop fades |
 //! | engine | [`engine`] | N channels in real time: lock-free events, no allocation in the callback; offline renders |
 //! | device I/O | [`io`] | CSV replay, serial, OSC in; WAV and audio devices (cpal) out, each behind a feature |

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
+use underfoot::compensation::equalizer::Realisation;
 use underfoot::compensation::files::{self, EqualizerFile};
 use underfoot::compensation::table::UserTable;
 use underfoot::engine::{EngineConfig, MaterialBank};
@@ -163,10 +164,28 @@ impl SynthArgs {
                     .interpolate(&model.params)
                     .with_context(|| format!("looking the user up in {}", table.display()))?;
             }
+            eprintln!(
+                "underfoot: equalizer {} ({}){}",
+                path.display(),
+                match eq.realisation {
+                    Realisation::Bank => format!(
+                        "filter bank, {:.1} ms of delay",
+                        (weights.config.bins - 1) as f64 / rate.hz() * 1e3
+                    ),
+                    Realisation::LowDelay { taps } =>
+                        format!("minimum-phase, {taps} taps, no delay"),
+                },
+                match (&self.eq_table, &self.user) {
+                    (Some(table), Some(_)) =>
+                        format!(", the user's curve interpolated from {}", table.display()),
+                    _ => String::new(),
+                }
+            );
             config.compensation.equalizer = Some((weights, eq.realisation));
         }
         if let (Some(user), None) = (&self.user, &self.eq_table) {
             let (model, who) = user.model()?;
+            eprintln!("underfoot: limb compensation Z_c of {who}");
             config.compensation.limb = Some(
                 model
                     .compensation(rate, user.band()?)

@@ -62,7 +62,7 @@ use serde::{Deserialize, Serialize};
 use super::CompensationError;
 use super::filterbank::{FilterBank, FilterBankConfig, Window};
 use super::fir::{Fir, MinPhaseDesigner};
-use super::sweep::{Device, FrequencyResponse, Sweep, measure};
+use super::sweep::{Device, FrequencyResponse, Sweep, interpolate_log, measure};
 use crate::units::{Band, Decibels, Hz, SampleRate};
 
 /// How the equalizer's weights are updated and bounded.
@@ -291,24 +291,7 @@ impl SpectralWeights {
 
 /// The measured magnitude in dB minus its mean (equation (4)), with its frequencies.
 fn centred_db(measured: &FrequencyResponse) -> Result<(Vec<f64>, Vec<f64>), CompensationError> {
-    if measured.freqs.len() < 2 || measured.freqs.len() != measured.response.len() {
-        return Err(CompensationError::TooShort {
-            what: "measured response",
-            len: measured.freqs.len().min(measured.response.len()),
-            needed: 2,
-        });
-    }
-    if let Some(index) = measured
-        .response
-        .iter()
-        .zip(&measured.freqs)
-        .position(|(h, f)| !(h.re.is_finite() && h.im.is_finite() && f.0 > 0.0))
-    {
-        return Err(CompensationError::NonFinite {
-            what: "measured response",
-            index,
-        });
-    }
+    measured.check()?;
     let db: Vec<f64> = measured.magnitude_db().iter().map(|d| d.0).collect();
     let mean = db.iter().sum::<f64>() / db.len() as f64;
     Ok((
@@ -323,24 +306,6 @@ fn deviation(centred: &[f64]) -> (Decibels, Decibels) {
     let rms = (centred.iter().map(|a| a * a).sum::<f64>() / n).sqrt();
     let peak = centred.iter().fold(0.0f64, |m, a| m.max(a.abs()));
     (Decibels(rms), Decibels(peak))
-}
-
-/// Linear interpolation of `y(x)` against `ln x`, held constant past the ends.
-fn interpolate_log(x: &[f64], y: &[f64], f: Hz) -> f64 {
-    let i = x.partition_point(|&v| v < f.0);
-    if i == 0 {
-        return y[0];
-    }
-    if i >= x.len() {
-        return y[y.len() - 1];
-    }
-    let (x0, x1) = (x[i - 1].ln(), x[i].ln());
-    let t = if x1 > x0 {
-        (f.0.ln() - x0) / (x1 - x0)
-    } else {
-        0.0
-    };
-    y[i - 1] + t * (y[i] - y[i - 1])
 }
 
 /// How the weights are turned into a filter.
@@ -800,6 +765,33 @@ mod tests {
             assert!(eq.passes[0].deviation.0 > 2.0);
             assert!(last.deviation.0 < 0.28, "{realisation:?}: {figures:?}");
             assert!(last.peak.0 < 1.0, "{realisation:?}: {figures:?}");
+            // How soon the equalizer's output follows its input: the impulse response's
+            // peak and the time by which half its energy is out.
+            let mut filter = EqualizerFilter::new(&eq.weights, realisation).unwrap();
+            let mut impulse = vec![0.0f32; 8192];
+            impulse[0] = 1.0;
+            let mut h = vec![0.0f32; impulse.len()];
+            filter.process(&impulse, &mut h);
+            let peak = (0..h.len())
+                .max_by(|&a, &b| h[a].abs().total_cmp(&h[b].abs()))
+                .unwrap();
+            let total: f32 = h.iter().map(|v| v * v).sum();
+            let mut sum = 0.0;
+            let half = h
+                .iter()
+                .position(|v| {
+                    sum += v * v;
+                    sum >= 0.5 * total
+                })
+                .unwrap();
+            eprintln!(
+                "{realisation:?}: bulk delay {} samples, impulse peak at {peak}, half the energy by {half}",
+                filter.latency()
+            );
+            if let Realisation::LowDelay { .. } = realisation {
+                assert_eq!(filter.latency(), 0);
+                assert!(peak < 48 && half < 48, "{peak} {half}");
+            }
         }
     }
 

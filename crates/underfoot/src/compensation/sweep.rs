@@ -433,6 +433,33 @@ pub struct FrequencyResponse {
 }
 
 impl FrequencyResponse {
+    /// Checks that there are at least two frequencies, one response each, all finite, at
+    /// positive frequencies: what anything computed from a measurement needs.
+    ///
+    /// # Errors
+    /// [`CompensationError::TooShort`] or [`CompensationError::NonFinite`].
+    pub fn check(&self) -> Result<(), CompensationError> {
+        if self.freqs.len() < 2 || self.freqs.len() != self.response.len() {
+            return Err(CompensationError::TooShort {
+                what: "measured response",
+                len: self.freqs.len().min(self.response.len()),
+                needed: 2,
+            });
+        }
+        if let Some(index) = self
+            .response
+            .iter()
+            .zip(&self.freqs)
+            .position(|(h, f)| !(h.re.is_finite() && h.im.is_finite() && f.0 > 0.0))
+        {
+            return Err(CompensationError::NonFinite {
+                what: "measured response",
+                index,
+            });
+        }
+        Ok(())
+    }
+
     /// Magnitude in dB at each frequency (a zero response is floored, not `-inf`).
     #[must_use]
     pub fn magnitude_db(&self) -> Vec<Decibels> {
@@ -693,6 +720,25 @@ impl Device for SimulatedTile {
     }
 }
 
+/// `y` at `f`, linear between the points `(ln x, y)`, held constant past the ends; `x`
+/// ascending and positive, in Hz.
+pub(crate) fn interpolate_log(x: &[f64], y: &[f64], f: Hz) -> f64 {
+    let i = x.partition_point(|&v| v < f.0);
+    if i == 0 {
+        return y[0];
+    }
+    if i >= x.len() {
+        return y[y.len() - 1];
+    }
+    let (x0, x1) = (x[i - 1].ln(), x[i].ln());
+    let t = if x1 > x0 {
+        (f.0.ln() - x0) / (x1 - x0)
+    } else {
+        0.0
+    };
+    y[i - 1] + t * (y[i] - y[i - 1])
+}
+
 /// A device that replays a measured response: a minimum-phase filter with its magnitude.
 ///
 /// The magnitude in dB is interpolated linearly against log-frequency between the
@@ -715,41 +761,13 @@ impl MeasuredDevice {
     /// [`CompensationError::TooShort`] for fewer than two points,
     /// [`CompensationError::NonFinite`] for a non-finite value.
     pub fn new(measured: &FrequencyResponse, rate: SampleRate) -> Result<Self, CompensationError> {
-        if measured.freqs.len() < 2 || measured.freqs.len() != measured.response.len() {
-            return Err(CompensationError::TooShort {
-                what: "measured response",
-                len: measured.freqs.len().min(measured.response.len()),
-                needed: 2,
-            });
-        }
-        if let Some(index) = measured
-            .response
-            .iter()
-            .zip(&measured.freqs)
-            .position(|(h, f)| !(h.re.is_finite() && h.im.is_finite() && f.0 > 0.0))
-        {
-            return Err(CompensationError::NonFinite {
-                what: "measured response",
-                index,
-            });
-        }
-        let logf: Vec<f64> = measured.freqs.iter().map(|f| f.0.ln()).collect();
+        measured.check()?;
+        let freqs: Vec<f64> = measured.freqs.iter().map(|f| f.0).collect();
         let db: Vec<f64> = measured.magnitude_db().iter().map(|d| d.0).collect();
         let fs = rate.hz();
         let mut designer = super::fir::MinPhaseDesigner::new(Self::TAPS, 0)?;
         let mut taps = vec![0.0; Self::TAPS];
-        let at = |nu: f64| {
-            let x = (nu * fs).max(f64::MIN_POSITIVE).ln();
-            let i = logf.partition_point(|&v| v < x);
-            if i == 0 {
-                db[0]
-            } else if i >= logf.len() {
-                db[db.len() - 1]
-            } else {
-                let t = (x - logf[i - 1]) / (logf[i] - logf[i - 1]);
-                db[i - 1] + t * (db[i] - db[i - 1])
-            }
-        };
+        let at = |nu: f64| interpolate_log(&freqs, &db, Hz(nu * fs));
         if !designer.design(at, &mut taps) {
             return Err(CompensationError::NonFinite {
                 what: "replayed response",
