@@ -2,6 +2,7 @@
 //! the unloaded tile, fit a user's limb from one loaded sweep, compensate them with the
 //! engine's chain, and start a new user from the table of users without a sweep.
 
+use underfoot::compensation::CompensationError;
 use underfoot::compensation::chain::{Compensation, CompensationChain};
 use underfoot::compensation::equalizer::{
     EqualizerConfig, Realisation, SpectralWeights, equalize, flatness,
@@ -37,7 +38,7 @@ struct Through<'a, D: Device> {
 }
 
 impl<D: Device> Device for Through<'_, D> {
-    fn play(&mut self, excitation: &[f64]) -> Vec<f64> {
+    fn play(&mut self, excitation: &[f64]) -> Result<Vec<f64>, CompensationError> {
         self.chain.reset();
         let mut x: Vec<f32> = excitation.iter().map(|&v| v as f32).collect();
         self.chain.process(&mut x);

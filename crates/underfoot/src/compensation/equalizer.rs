@@ -489,7 +489,7 @@ pub struct Equalized<'a, D: Device + ?Sized> {
 }
 
 impl<D: Device + ?Sized> Device for Equalized<'_, D> {
-    fn play(&mut self, excitation: &[f64]) -> Vec<f64> {
+    fn play(&mut self, excitation: &[f64]) -> Result<Vec<f64>, CompensationError> {
         let delay = self.filter.latency();
         self.filter.reset();
         let input: Vec<f32> = excitation
@@ -710,7 +710,7 @@ pub struct Inverted<'a, D: Device + ?Sized> {
 }
 
 impl<D: Device + ?Sized> Device for Inverted<'_, D> {
-    fn play(&mut self, excitation: &[f64]) -> Vec<f64> {
+    fn play(&mut self, excitation: &[f64]) -> Result<Vec<f64>, CompensationError> {
         let d = self.inverse.delay;
         let mut drive = vec![0.0; excitation.len() + d];
         for (n, y) in drive.iter_mut().enumerate() {

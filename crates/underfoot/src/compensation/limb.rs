@@ -745,7 +745,7 @@ impl SimulatedUser {
 
 impl Device for SimulatedUser {
     /// Plays from rest.
-    fn play(&mut self, excitation: &[f64]) -> Vec<f64> {
+    fn play(&mut self, excitation: &[f64]) -> Result<Vec<f64>, CompensationError> {
         let mut x = excitation.to_vec();
         self.limb_sos.filter_in_place(&mut x);
         self.tile.play(&x)

@@ -61,6 +61,12 @@ pub enum CompensationError {
         /// The length needed.
         needed: usize,
     },
+    /// A measurement device cannot play or record.
+    #[error("device: {reason}")]
+    Device {
+        /// What went wrong.
+        reason: String,
+    },
     /// A compensation file cannot be read or written.
     #[error("{path}: {reason}")]
     File {

@@ -491,18 +491,22 @@ impl FrequencyResponse {
 /// Anything that can play an excitation and record the result from the start of playback.
 pub trait Device {
     /// Plays `excitation` and returns the recording, at least as long.
-    fn play(&mut self, excitation: &[f64]) -> Vec<f64>;
+    ///
+    /// # Errors
+    /// [`CompensationError::Device`] when the device cannot play or record.
+    fn play(&mut self, excitation: &[f64]) -> Result<Vec<f64>, CompensationError>;
 }
 
 /// Plays the sweep programme through `device` and measures its response.
 ///
 /// # Errors
-/// As [`Sweep::response`], when the device returns too little or non-finite data.
+/// The device's own error, or as [`Sweep::response`] when it returns too little or
+/// non-finite data.
 pub fn measure<D: Device + ?Sized>(
     device: &mut D,
     sweep: &Sweep,
 ) -> Result<FrequencyResponse, CompensationError> {
-    let recorded = device.play(sweep.excitation());
+    let recorded = device.play(sweep.excitation())?;
     sweep.response(&recorded)
 }
 
@@ -714,9 +718,9 @@ impl SimulatedTile {
 
 impl Device for SimulatedTile {
     /// Plays from rest.
-    fn play(&mut self, excitation: &[f64]) -> Vec<f64> {
+    fn play(&mut self, excitation: &[f64]) -> Result<Vec<f64>, CompensationError> {
         self.reset();
-        self.process(excitation)
+        Ok(self.process(excitation))
     }
 }
 
@@ -780,7 +784,7 @@ impl MeasuredDevice {
 
 impl Device for MeasuredDevice {
     /// Convolves with the replayed response (by FFT), as long as the excitation.
-    fn play(&mut self, excitation: &[f64]) -> Vec<f64> {
+    fn play(&mut self, excitation: &[f64]) -> Result<Vec<f64>, CompensationError> {
         let n = (excitation.len() + self.taps.len()).next_power_of_two();
         let x = spectrum(excitation, n);
         let h = spectrum(&self.taps, n);
@@ -794,13 +798,15 @@ impl Device for MeasuredDevice {
             last.im = 0.0;
         }
         if inverse.process(&mut product, &mut out).is_err() {
-            return vec![0.0; excitation.len()];
+            return Err(CompensationError::Device {
+                reason: "the replay's inverse FFT failed".into(),
+            });
         }
         out.truncate(excitation.len());
         for v in &mut out {
             *v /= n as f64;
         }
-        out
+        Ok(out)
     }
 }
 
@@ -812,8 +818,8 @@ mod tests {
 
     struct Wire;
     impl Device for Wire {
-        fn play(&mut self, excitation: &[f64]) -> Vec<f64> {
-            excitation.to_vec()
+        fn play(&mut self, excitation: &[f64]) -> Result<Vec<f64>, CompensationError> {
+            Ok(excitation.to_vec())
         }
     }
 
