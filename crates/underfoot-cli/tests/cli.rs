@@ -997,3 +997,26 @@ fn a_compensation_session_on_the_simulated_tile() {
         s(&p("missing.json")),
     ]));
 }
+
+/// `--device audio` in a build without the `audio` feature says so, rather than treating
+/// `audio` as a file name.
+#[cfg(not(feature = "audio"))]
+#[test]
+fn calibrate_on_a_sound_card_needs_the_audio_feature() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("tile.json");
+    let o = run(&[
+        "calibrate",
+        "sweep",
+        "--device",
+        "audio",
+        "--output-device",
+        "hw:1",
+        "--out",
+        s(&out),
+    ]);
+    let message = assert_error(&o);
+    assert!(message.contains("no audio support"), "{message}");
+    assert!(message.contains("hw:1"), "{message}");
+    assert!(!out.exists());
+}

@@ -40,14 +40,61 @@ pub enum DeviceArg {
     Simulated,
     /// A replay of a measured response (a `calibrate sweep` file).
     Measured(PathBuf),
+    /// A sound card: the actuator on an output, the accelerometer on an input (`audio`,
+    /// or `audio:DEVICE` for both); `--output-device` and `--input-device` override.
+    Audio {
+        output: Option<String>,
+        input: Option<String>,
+    },
 }
 
 fn parse_device(s: &str) -> Result<DeviceArg, String> {
     match s {
         "simulated" => Ok(DeviceArg::Simulated),
-        "" => Err("expected `simulated` or a measured-response file".into()),
-        path => Ok(DeviceArg::Measured(PathBuf::from(path))),
+        "audio" => Ok(DeviceArg::Audio {
+            output: None,
+            input: None,
+        }),
+        "" => Err("expected `simulated`, `audio[:DEVICE]` or a measured-response file".into()),
+        _ => match s.strip_prefix("audio:") {
+            Some(device) if !device.is_empty() => Ok(DeviceArg::Audio {
+                output: Some(device.to_string()),
+                input: Some(device.to_string()),
+            }),
+            _ => Ok(DeviceArg::Measured(PathBuf::from(s))),
+        },
     }
+}
+
+/// The sound card's settings for `--device audio`.
+#[derive(Debug, Clone, Args)]
+pub struct AudioDeviceArgs {
+    /// `--device audio`: the output that drives the actuator (an id such as `hw:1`, a
+    /// description or part of either; `run --list-devices` lists them); the host's
+    /// default without it.
+    #[arg(long = "output-device", value_name = "DEVICE")]
+    pub output_device: Option<String>,
+    /// `--device audio`: the input the accelerometer is on; the host's default without it.
+    #[arg(long = "input-device", value_name = "DEVICE")]
+    pub input_device: Option<String>,
+    /// `--device audio`: audio host: default, alsa or jack.
+    #[arg(long, default_value = "default", value_name = "HOST")]
+    pub host: String,
+    /// `--device audio`: the output channel that drives the actuator, from 0.
+    #[arg(long = "out-channel", default_value_t = 0, value_name = "N")]
+    pub out_channel: u16,
+    /// `--device audio`: the input channel the accelerometer is on, from 0.
+    #[arg(long = "in-channel", default_value_t = 0, value_name = "N")]
+    pub in_channel: u16,
+    /// `--device audio`: channels of the output stream (the others play silence).
+    #[arg(long = "output-channels", default_value_t = 2, value_name = "N")]
+    pub output_channels: u16,
+    /// `--device audio`: channels of the input stream (only `--in-channel` is recorded).
+    #[arg(long = "input-channels", default_value_t = 2, value_name = "N")]
+    pub input_channels: u16,
+    /// `--device audio`: frames per device buffer; the host's default without it.
+    #[arg(long, value_name = "FRAMES")]
+    pub buffer: Option<u32>,
 }
 
 fn parse_band(s: &str) -> Result<Band, String> {
@@ -83,6 +130,8 @@ pub struct SweepSettings {
     /// `B3K3,K2M2,B2M2`, or a limb file.
     #[arg(long, value_name = "USER", value_parser = parse_user)]
     pub load: Option<UserArg>,
+    #[command(flatten)]
+    pub audio: AudioDeviceArgs,
 }
 
 impl SweepSettings {
@@ -152,14 +201,80 @@ impl SweepSettings {
                     format!("replay of {} ({})", path.display(), file.description),
                 ))
             }
+            DeviceArg::Audio { output, input } => {
+                anyhow::ensure!(
+                    self.load.is_none(),
+                    "--load simulates a user on the simulated tile; on a sound card, stand on it"
+                );
+                let output = self.audio.output_device.clone().or_else(|| output.clone());
+                let input = self.audio.input_device.clone().or_else(|| input.clone());
+                audio_loop(&self.audio, output, input, rate)
+            }
         }
     }
+}
+
+/// The sound card as a sweep device.
+#[cfg(feature = "audio")]
+fn audio_loop(
+    args: &AudioDeviceArgs,
+    output: Option<String>,
+    input: Option<String>,
+    rate: SampleRate,
+) -> anyhow::Result<(Box<dyn Device>, String)> {
+    use underfoot::io::audio::{AudioConfig, AudioLoop, LoopConfig};
+    let host = args
+        .host
+        .parse()
+        .map_err(|e| anyhow::anyhow!("--host {:?}: {e}", args.host))?;
+    let stream = |device: Option<String>, channels: u16| AudioConfig {
+        host,
+        device,
+        channels,
+        rate,
+        buffer_frames: args.buffer,
+    };
+    let name = |d: &Option<String>| d.clone().unwrap_or_else(|| "default".into());
+    let description = format!(
+        "sound card ({host} host): output {} channel {}, input {} channel {}",
+        name(&output),
+        args.out_channel,
+        name(&input),
+        args.in_channel
+    );
+    let cfg = LoopConfig {
+        out_channel: args.out_channel,
+        in_channel: args.in_channel,
+        ..LoopConfig::new(
+            stream(output, args.output_channels),
+            stream(input, args.input_channels),
+        )
+    };
+    let device = AudioLoop::new(cfg).context("the sound card")?;
+    Ok((Box::new(device), description))
+}
+
+#[cfg(not(feature = "audio"))]
+fn audio_loop(
+    args: &AudioDeviceArgs,
+    output: Option<String>,
+    input: Option<String>,
+    _rate: SampleRate,
+) -> anyhow::Result<(Box<dyn Device>, String)> {
+    anyhow::bail!(
+        "--device audio (output {:?}, input {:?}, host {}): this build has no audio support; \
+         rebuild with `--features audio` (needs the libasound2-dev package) or `--features jack`",
+        output.as_deref().unwrap_or("default"),
+        input.as_deref().unwrap_or("default"),
+        args.host
+    )
 }
 
 /// `underfoot calibrate sweep`.
 #[derive(Debug, Clone, Args)]
 pub struct SweepArgs {
-    /// The device: `simulated`, or a measured-response file to replay.
+    /// The device: `simulated`, a measured-response file to replay, or `audio[:DEVICE]`
+    /// (a sound card; see `--output-device`, `--input-device`, `--host`).
     #[arg(long, default_value = "simulated", value_name = "DEVICE", value_parser = parse_device)]
     pub device: DeviceArg,
     /// Measure through this equalizer (a `calibrate equalize` file).
@@ -178,8 +293,9 @@ pub struct SweepArgs {
 /// `underfoot calibrate equalize`.
 #[derive(Debug, Clone, Args)]
 pub struct EqualizeArgs {
-    /// The device: `simulated`, or a measured-response file (from `calibrate sweep`),
-    /// whose magnitude is replayed for the passes after the first.
+    /// The device: `simulated`, a measured-response file (from `calibrate sweep`), whose
+    /// magnitude is replayed for the passes after the first, or `audio[:DEVICE]` (a sound
+    /// card, measured at every pass; see `--output-device`, `--input-device`, `--host`).
     #[arg(long, value_name = "DEVICE", value_parser = parse_device)]
     pub device: DeviceArg,
     /// Sweeps (passes); the first is through flat weights.

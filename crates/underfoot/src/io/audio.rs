@@ -27,6 +27,39 @@
 //! [`MAX_SCRATCH_FRAMES`]); a larger device buffer is rendered in several whole-frame
 //! chunks rather than allocating on the audio thread.
 //!
+//! [`AudioInput::start`] is the same for capture: the device is matched among the host's
+//! input devices and configured by the same rules, and `on_input(samples, channels)` gets
+//! interleaved `f32` (converted from the device's format through a scratch buffer
+//! allocated at start-up, like the output's).
+//!
+//! # Measuring through the sound card
+//!
+//! [`AudioLoop`] is a sweep [`Device`]: each [`Device::play`] opens the input (the
+//! accelerometer, one channel recorded) and then the output (the actuator, the excitation
+//! on one channel, the others silent), plays silence for [`LoopConfig::lead_in`], then the
+//! excitation, records `excitation.len()` samples plus [`LoopConfig::tail`], and stops both
+//! streams (the lead-in is also the time to patch ports, on JACK). Nothing on the audio threads locks or allocates: the output reads the
+//! excitation from a shared slice at its own position, the input pushes the recorded
+//! channel into an `rtrb` ring, and the calling thread drains the ring every few ms.
+//!
+//! The recording is aligned to playback by a count: the input counts the frames it has
+//! delivered, and the output's first callback of the excitation reads that count. The
+//! recording starts at that input frame, so it lags playback by the path's latency (output
+//! plus input buffering and converters), about a buffer plus the hardware latency, which
+//! the sweep's window absorbs (it keeps 50 ms before time zero and 250 ms after). Within
+//! one JACK graph with the output patched to the input, the lag is zero: the output client
+//! runs before the input client in the same cycle.
+//!
+//! Failures are [`CompensationError::Device`] with the reason: a stream that cannot be
+//! opened (no such device, a rate the device or the JACK server does not run at, whose
+//! message lists what it offers), an input and output at different rates, a stream the
+//! host reports errors on, no input within the lead-in plus [`LOOP_TIMEOUT_MARGIN`], or a
+//! recording not complete within the excitation's length plus the tail plus that margin.
+//! An xrun while recording leaves a gap that shifts the rest of the recording, so such a
+//! recording is thrown away and the excitation played again in the same streams, up to
+//! [`LoopConfig::attempts`] times; when every attempt had xruns, that is the error.
+//! [`AudioLoop::last_report`] says how many attempts it took.
+//!
 //! # What it measured
 //!
 //! The audio thread records into atomics (no locks), read by [`AudioOutput::stats`]:
@@ -57,16 +90,18 @@
 use std::fmt;
 use std::str::FromStr;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::time::Duration;
+use std::sync::atomic::{AtomicU32, AtomicU64, AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
 
 use cpal::traits::{DeviceTrait, HostTrait, StreamTrait};
 use cpal::{
-    BufferSize, FromSample, OutputCallbackInfo, SizedSample, StreamConfig, StreamInstant,
-    SupportedBufferSize, SupportedStreamConfigRange,
+    BufferSize, FromSample, InputCallbackInfo, OutputCallbackInfo, SizedSample, StreamConfig,
+    StreamInstant, SupportedBufferSize, SupportedStreamConfigRange,
 };
 
 use super::IoError;
+use crate::compensation::CompensationError;
+use crate::compensation::sweep::Device;
 use crate::units::{SampleRate, Seconds};
 
 /// The device's sample format, as cpal names it.
@@ -256,40 +291,17 @@ impl AudioOutput {
         config: &AudioConfig,
         render: impl FnMut(&mut [f32], usize) + Send + 'static,
     ) -> Result<Self, IoError> {
-        let (host, host_kind) = open_host(config.host)?;
-        let device = find_device(&host, host_kind, config.device.as_deref())?;
-        let name = device_id(&device);
-        let label = format!("{host_kind} device \"{name}\"");
-        let chosen = choose_config(&device, &label, config)?;
-
+        let opened = open_device(config, Direction::Output)?;
         let shared = Arc::new(Shared::default());
-        let stream = build_stream(&device, &chosen, Arc::clone(&shared), render).map_err(|e| {
-            IoError::Open {
-                device: label.clone(),
+        let stream = build_stream(&opened.device, &opened.chosen, Arc::clone(&shared), render)
+            .map_err(|e| IoError::Open {
+                device: opened.label.clone(),
                 reason: format!(
                     "cannot build a {} channel, {}, {} output stream: {e}",
-                    chosen.stream.channels, config.rate, chosen.format
+                    opened.chosen.stream.channels, config.rate, opened.chosen.format
                 ),
-            }
-        })?;
-        stream.play().map_err(|e| IoError::Open {
-            device: label.clone(),
-            reason: format!("cannot start the stream: {e}"),
-        })?;
-
-        let buffer_frames = stream
-            .buffer_size()
-            .ok()
-            .filter(|&n| n > 0)
-            .or(config.buffer_frames);
-        let info = StreamInfo {
-            host: host_kind,
-            device: name,
-            rate: config.rate,
-            channels: config.channels,
-            buffer_frames,
-            sample_format: chosen.format,
-        };
+            })?;
+        let info = play_stream(&stream, &opened, config)?;
         Ok(Self {
             stream,
             info,
@@ -318,6 +330,496 @@ impl AudioOutput {
         let _ = self.stream.pause();
         drop(self.stream);
         self.shared.snapshot()
+    }
+}
+
+/// A running input stream. Dropping it stops the stream as [`AudioInput::stop`] does.
+pub struct AudioInput {
+    stream: cpal::Stream,
+    info: StreamInfo,
+    shared: Arc<Shared>,
+}
+
+impl fmt::Debug for AudioInput {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("AudioInput")
+            .field("info", &self.info)
+            .field("stats", &self.stats())
+            .finish_non_exhaustive()
+    }
+}
+
+impl AudioInput {
+    /// Opens the input device in `config` and hands each buffer it captures to
+    /// `on_input` on its audio thread.
+    ///
+    /// `on_input(samples, channels)` gets interleaved `f32` (frames x channels), converted
+    /// from the device's format (integers scaled to ±1); it must not allocate, lock or
+    /// block. The device is matched, and its configuration chosen, by the same rules as
+    /// an output's (module documentation), among the host's input devices.
+    ///
+    /// # Errors
+    /// As [`AudioOutput::start`].
+    pub fn start(
+        config: &AudioConfig,
+        on_input: impl FnMut(&[f32], usize) + Send + 'static,
+    ) -> Result<Self, IoError> {
+        let opened = open_device(config, Direction::Input)?;
+        let shared = Arc::new(Shared::default());
+        let stream = build_input_stream(
+            &opened.device,
+            &opened.chosen,
+            Arc::clone(&shared),
+            on_input,
+        )
+        .map_err(|e| IoError::Open {
+            device: opened.label.clone(),
+            reason: format!(
+                "cannot build a {} channel, {}, {} input stream: {e}",
+                opened.chosen.stream.channels, config.rate, opened.chosen.format
+            ),
+        })?;
+        let info = play_stream(&stream, &opened, config)?;
+        Ok(Self {
+            stream,
+            info,
+            shared,
+        })
+    }
+
+    /// What was opened.
+    #[must_use]
+    pub fn info(&self) -> &StreamInfo {
+        &self.info
+    }
+
+    /// Counts so far, read without disturbing the audio thread. For an input,
+    /// [`StreamStats::output_latency`] holds the capture latency: the callback instant
+    /// minus the host's capture instant.
+    #[must_use]
+    pub fn stats(&self) -> StreamStats {
+        self.shared.snapshot()
+    }
+
+    /// Stops the stream, waits for the audio thread to let go of the callback, and
+    /// returns the final counts.
+    pub fn stop(self) -> StreamStats {
+        let _ = self.stream.pause();
+        drop(self.stream);
+        self.shared.snapshot()
+    }
+}
+
+/// How long a loop waits for the first input beyond its lead-in, and for the rest of the
+/// recording beyond the excitation and tail, before it gives up.
+pub const LOOP_TIMEOUT_MARGIN: Seconds = Seconds(2.0);
+
+/// How often the calling thread drains the recording while an [`AudioLoop`] runs.
+const LOOP_POLL: Duration = Duration::from_millis(5);
+
+/// [`LoopShared::start_frame`] before the excitation has started.
+const NOT_STARTED: u64 = u64::MAX;
+
+/// Settings of an [`AudioLoop`]: which output drives the actuator and which input reads
+/// the accelerometer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoopConfig {
+    /// The output stream; the excitation goes to `out_channel`, the others stay silent.
+    pub output: AudioConfig,
+    /// The output channel that drives the actuator (from 0).
+    pub out_channel: u16,
+    /// The input stream; only `in_channel` is recorded. Its rate must be the output's.
+    pub input: AudioConfig,
+    /// The input channel the accelerometer is on (from 0).
+    pub in_channel: u16,
+    /// Silence played after both streams run and before the excitation starts, for the
+    /// devices (and any patching of ports) to settle.
+    pub lead_in: Seconds,
+    /// Recorded after the end of the excitation, so that the device's decay is kept.
+    pub tail: Seconds,
+    /// Playbacks tried, in the same streams, before giving up on recordings with xruns
+    /// (an xrun leaves a gap that shifts the rest of the recording).
+    pub attempts: u32,
+}
+
+impl LoopConfig {
+    /// Channel 0 of `output` to channel 0 of `input`, a 0.2 s lead-in, a 0.5 s tail and up
+    /// to 3 attempts.
+    #[must_use]
+    pub fn new(output: AudioConfig, input: AudioConfig) -> Self {
+        Self {
+            output,
+            out_channel: 0,
+            input,
+            in_channel: 0,
+            lead_in: Seconds(0.2),
+            tail: Seconds(0.5),
+            attempts: 3,
+        }
+    }
+}
+
+/// What the last [`AudioLoop`] measurement ran on and saw.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoopReport {
+    /// The output stream.
+    pub output: StreamInfo,
+    /// The input stream.
+    pub input: StreamInfo,
+    /// The output's counts when it was stopped.
+    pub output_stats: StreamStats,
+    /// The input's counts when it was stopped.
+    pub input_stats: StreamStats,
+    /// Input frames captured before the output callback that began the excitation: the
+    /// recording starts at this input frame.
+    pub start_frame: u64,
+    /// Frames returned (the excitation plus the tail).
+    pub recorded_frames: usize,
+    /// Playbacks it took to get one without xruns.
+    pub attempts: u32,
+}
+
+/// Lock-free state shared by the two audio threads and the calling thread.
+struct LoopShared {
+    /// Raised by the calling thread to start an attempt (0 before the first): the output
+    /// starts the excitation from its beginning at its next callback.
+    attempt: AtomicU32,
+    /// The input frame count the output read when it began the current attempt.
+    start_frame: AtomicU64,
+    /// Input frames delivered so far; counted before they are pushed, so that any frame
+    /// the calling thread has popped lies below every later value.
+    input_frames: AtomicU64,
+    /// Input samples lost because the ring was full.
+    dropped: AtomicU64,
+    /// Excitation samples written to the output so far.
+    played: AtomicUsize,
+}
+
+impl Default for LoopShared {
+    fn default() -> Self {
+        Self {
+            attempt: AtomicU32::new(0),
+            start_frame: AtomicU64::new(NOT_STARTED),
+            input_frames: AtomicU64::new(0),
+            dropped: AtomicU64::new(0),
+            played: AtomicUsize::new(0),
+        }
+    }
+}
+
+/// A sweep [`Device`] made of a sound card's output (driving the actuator) and input
+/// (reading the accelerometer): plays an excitation and records it, aligned to the start
+/// of playback. See the module documentation.
+#[derive(Debug)]
+pub struct AudioLoop {
+    cfg: LoopConfig,
+    last: Option<LoopReport>,
+}
+
+impl AudioLoop {
+    /// Checks the settings; nothing is opened until [`Device::play`].
+    ///
+    /// # Errors
+    /// [`IoError::Unsupported`] when the input's rate differs from the output's, a channel
+    /// lies outside its stream, the lead-in or tail is negative or not finite, or no
+    /// attempt is allowed.
+    pub fn new(cfg: LoopConfig) -> Result<Self, IoError> {
+        let unsupported = |device: &AudioConfig, reason: String| IoError::Unsupported {
+            device: device.device.clone().unwrap_or_else(|| "default".into()),
+            reason,
+        };
+        if cfg.input.rate != cfg.output.rate {
+            return Err(unsupported(
+                &cfg.input,
+                format!(
+                    "the input runs at {} but the output at {}; a measurement needs one rate",
+                    cfg.input.rate, cfg.output.rate
+                ),
+            ));
+        }
+        if cfg.out_channel >= cfg.output.channels {
+            return Err(unsupported(
+                &cfg.output,
+                format!(
+                    "output channel {} of a {} channel stream (channels count from 0)",
+                    cfg.out_channel, cfg.output.channels
+                ),
+            ));
+        }
+        if cfg.in_channel >= cfg.input.channels {
+            return Err(unsupported(
+                &cfg.input,
+                format!(
+                    "input channel {} of a {} channel stream (channels count from 0)",
+                    cfg.in_channel, cfg.input.channels
+                ),
+            ));
+        }
+        if cfg.attempts == 0 {
+            return Err(unsupported(&cfg.output, "zero attempts".into()));
+        }
+        for (name, t) in [("lead-in", cfg.lead_in), ("tail", cfg.tail)] {
+            if !(t.0.is_finite() && t.0 >= 0.0) {
+                return Err(unsupported(
+                    &cfg.output,
+                    format!("a {name} of {t}: need a finite duration of at least 0 s"),
+                ));
+            }
+        }
+        Ok(Self { cfg, last: None })
+    }
+
+    /// The settings.
+    #[must_use]
+    pub fn config(&self) -> &LoopConfig {
+        &self.cfg
+    }
+
+    /// What the last successful measurement ran on, its start frame and its counts.
+    #[must_use]
+    pub fn last_report(&self) -> Option<&LoopReport> {
+        self.last.as_ref()
+    }
+
+    /// Plays `excitation` and records, as [`Device::play`], with the reason of a failure
+    /// as text.
+    fn run(&mut self, excitation: &[f64]) -> Result<Vec<f64>, String> {
+        let cfg = &self.cfg;
+        let rate = cfg.output.rate;
+        let needed = excitation.len() + rate.samples_in(cfg.tail);
+        // Room for everything captured from the start of the input to the end of the
+        // recording, so the ring cannot fill even if the calling thread stalls a while.
+        let capacity =
+            rate.samples_in(Seconds(cfg.lead_in.0 + 2.0 * LOOP_TIMEOUT_MARGIN.0)) + needed;
+
+        let shared = Arc::new(LoopShared::default());
+        let (mut producer, consumer) = rtrb::RingBuffer::<f32>::new(capacity);
+        let in_channel = usize::from(cfg.in_channel);
+        let input_side = Arc::clone(&shared);
+        // The input starts first, so that it is counting frames before the output can
+        // read the count.
+        let input = AudioInput::start(&cfg.input, move |data: &[f32], channels: usize| {
+            let frames = data.len() / channels;
+            input_side
+                .input_frames
+                .fetch_add(frames as u64, Ordering::AcqRel);
+            for frame in data.chunks_exact(channels) {
+                let x = frame.get(in_channel).copied().unwrap_or(0.0);
+                if producer.push(x).is_err() {
+                    input_side.dropped.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        })
+        .map_err(|e| format!("the input: {e}"))?;
+
+        let program: Arc<[f32]> = excitation.iter().map(|&x| x as f32).collect();
+        let out_channel = usize::from(cfg.out_channel);
+        let output_side = Arc::clone(&shared);
+        // Past the end until the first attempt: silence.
+        let mut position = program.len();
+        let mut seen_attempt = 0_u32;
+        let output = AudioOutput::start(&cfg.output, move |out: &mut [f32], channels: usize| {
+            out.fill(0.0);
+            let attempt = output_side.attempt.load(Ordering::Acquire);
+            if attempt != seen_attempt {
+                seen_attempt = attempt;
+                position = 0;
+                let at = output_side.input_frames.load(Ordering::Acquire);
+                output_side.start_frame.store(at, Ordering::Release);
+            }
+            for (frame, &x) in out
+                .chunks_exact_mut(channels)
+                .zip(program.get(position..).unwrap_or_default())
+            {
+                if let Some(sample) = frame.get_mut(out_channel) {
+                    *sample = x;
+                }
+                position += 1;
+            }
+            output_side.played.store(position, Ordering::Release);
+        })
+        .map_err(|e| format!("the output: {e}"))?;
+
+        let mut session = Session {
+            shared: &shared,
+            consumer,
+            input: &input,
+            output: &output,
+            index: 0,
+        };
+        let result = session.measure(needed, cfg);
+        let output_info = output.info().clone();
+        let input_info = input.info().clone();
+        let output_stats = output.stop();
+        let input_stats = input.stop();
+        let (recording, start_frame, attempts) = result?;
+        self.last = Some(LoopReport {
+            output: output_info,
+            input: input_info,
+            output_stats,
+            input_stats,
+            start_frame,
+            recorded_frames: recording.len(),
+            attempts,
+        });
+        Ok(recording)
+    }
+}
+
+/// The calling thread's side of a running [`AudioLoop`].
+struct Session<'a> {
+    shared: &'a LoopShared,
+    consumer: rtrb::Consumer<f32>,
+    input: &'a AudioInput,
+    output: &'a AudioOutput,
+    /// The input frame the next popped sample is.
+    index: u64,
+}
+
+impl Session<'_> {
+    /// Waits for input, lets the lead-in pass, and records attempts until one has no
+    /// xruns. Returns the recording, the input frame it starts at and the attempts made.
+    fn measure(&mut self, needed: usize, cfg: &LoopConfig) -> Result<(Vec<f64>, u64, u32), String> {
+        let lead_in = Duration::from_secs_f64(cfg.lead_in.0);
+        let margin = Duration::from_secs_f64(LOOP_TIMEOUT_MARGIN.0);
+        // Before the first attempt, everything popped lies before its start (see
+        // `LoopShared::input_frames`), so it is dropped.
+        let opened = Instant::now();
+        loop {
+            self.drain(None);
+            self.check()?;
+            let arrived = self.shared.input_frames.load(Ordering::Acquire) > 0;
+            if arrived && opened.elapsed() >= lead_in {
+                break;
+            }
+            if !arrived && opened.elapsed() >= lead_in + margin {
+                return Err(format!(
+                    "no input arrived from {} within {:.1} s of starting it",
+                    describe(self.input.info()),
+                    (lead_in + margin).as_secs_f64()
+                ));
+            }
+            std::thread::sleep(LOOP_POLL);
+        }
+
+        let mut spoiled = Vec::new();
+        for attempt in 1..=cfg.attempts {
+            let xruns = || self.output.stats().xruns + self.input.stats().xruns;
+            let before = xruns();
+            let (recording, start) = self.attempt(attempt, needed, margin)?;
+            let during = xruns() - before;
+            if during == 0 {
+                return Ok((recording, start, attempt));
+            }
+            spoiled.push(during.to_string());
+        }
+        Err(format!(
+            "every attempt had xruns while recording ({} in the {} attempts), which leave \
+             gaps in the recording; try a larger buffer or a less busy machine",
+            spoiled.join(", "),
+            cfg.attempts
+        ))
+    }
+
+    /// One playback of the excitation: arms the output and collects `needed` frames from
+    /// the input frame it started at.
+    fn attempt(
+        &mut self,
+        attempt: u32,
+        needed: usize,
+        margin: Duration,
+    ) -> Result<(Vec<f64>, u64), String> {
+        let shared = self.shared;
+        shared.start_frame.store(NOT_STARTED, Ordering::Release);
+        shared.attempt.store(attempt, Ordering::Release);
+        let armed = Instant::now();
+        let rate = self.input.info().rate.hz();
+        let deadline = Duration::from_secs_f64(needed as f64 / rate) + margin;
+        // Frames popped from here on may lie at or after the start, which the output has
+        // perhaps not published yet: all are kept until it has.
+        let base = self.index;
+        let mut captured: Vec<f32> = Vec::with_capacity(needed + self.consumer.slots());
+        loop {
+            self.drain(Some(&mut captured));
+            self.check()?;
+            let start = shared.start_frame.load(Ordering::Acquire);
+            // Never below `base`: the output reads the count after it sees the attempt.
+            let skip = usize::try_from(start.saturating_sub(base)).unwrap_or(usize::MAX);
+            if start != NOT_STARTED && captured.len().saturating_sub(skip) >= needed {
+                let recording = captured[skip..skip + needed]
+                    .iter()
+                    .map(|&x| f64::from(x))
+                    .collect();
+                return Ok((recording, start));
+            }
+            if armed.elapsed() >= deadline {
+                let seconds = deadline.as_secs_f64();
+                return Err(if start == NOT_STARTED {
+                    format!(
+                        "the output on {} never started the excitation within {seconds:.1} s \
+                         (no callbacks from the host)",
+                        describe(self.output.info())
+                    )
+                } else {
+                    format!(
+                        "input from {} stopped arriving: {} of {needed} samples recorded \
+                         within {seconds:.1} s ({} excitation samples played)",
+                        describe(self.input.info()),
+                        captured.len().saturating_sub(skip),
+                        shared.played.load(Ordering::Acquire),
+                    )
+                });
+            }
+            std::thread::sleep(LOOP_POLL);
+        }
+    }
+
+    /// Pops everything the input has pushed, into `keep` if given.
+    fn drain(&mut self, mut keep: Option<&mut Vec<f32>>) {
+        while let Ok(x) = self.consumer.pop() {
+            if let Some(keep) = keep.as_mut() {
+                keep.push(x);
+            }
+            self.index += 1;
+        }
+    }
+
+    /// A failed stream or lost input.
+    fn check(&self) -> Result<(), String> {
+        for (which, stream) in [
+            ("output", (self.output.stats(), self.output.info())),
+            ("input", (self.input.stats(), self.input.info())),
+        ] {
+            let (stats, info) = stream;
+            if stats.stream_errors > 0 {
+                return Err(format!(
+                    "the {which} stream on {} failed ({} error(s) from the host)",
+                    describe(info),
+                    stats.stream_errors
+                ));
+            }
+        }
+        let dropped = self.shared.dropped.load(Ordering::Relaxed);
+        if dropped > 0 {
+            return Err(format!(
+                "{dropped} input samples were lost (the recording was not drained in time)"
+            ));
+        }
+        Ok(())
+    }
+}
+
+fn describe(info: &StreamInfo) -> String {
+    format!("{} device \"{}\"", info.host, info.device)
+}
+
+impl Device for AudioLoop {
+    /// Opens both streams, plays `excitation` after the lead-in and returns the input
+    /// from the output callback that began it, `excitation.len()` plus the tail long.
+    /// Both streams are stopped before it returns, also on failure.
+    fn play(&mut self, excitation: &[f64]) -> Result<Vec<f64>, CompensationError> {
+        self.run(excitation)
+            .map_err(|reason| CompensationError::Device { reason })
     }
 }
 
@@ -433,15 +935,63 @@ fn device_description(device: &cpal::Device) -> String {
         .unwrap_or_default()
 }
 
+/// Which way a stream carries audio; device matching and configuration take it so that
+/// inputs and outputs are chosen by the same rules.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Direction {
+    Output,
+    Input,
+}
+
+impl fmt::Display for Direction {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::Output => "output",
+            Self::Input => "input",
+        })
+    }
+}
+
+/// The host's devices in `direction`.
+fn devices_in(host: &cpal::Host, direction: Direction) -> Result<Vec<cpal::Device>, cpal::Error> {
+    match direction {
+        Direction::Output => output_devices(host),
+        Direction::Input => Ok(host
+            .input_devices()?
+            .filter(|d| goes(d, Direction::Input))
+            .collect()),
+    }
+}
+
+/// Whether `device` carries audio in `direction`. cpal lists JACK's synthetic devices
+/// under both directions; their description says which one each really is.
+fn goes(device: &cpal::Device, direction: Direction) -> bool {
+    match direction {
+        Direction::Output => is_output(device),
+        Direction::Input => {
+            device.supports_input()
+                && !matches!(device.description(), Ok(d) if d.direction() == cpal::DeviceDirection::Output)
+        }
+    }
+}
+
+fn default_device(host: &cpal::Host, direction: Direction) -> Option<cpal::Device> {
+    match direction {
+        Direction::Output => host.default_output_device(),
+        Direction::Input => host.default_input_device(),
+    }
+}
+
 fn find_device(
     host: &cpal::Host,
     kind: AudioHost,
     wanted: Option<&str>,
+    direction: Direction,
 ) -> Result<cpal::Device, IoError> {
     let no_device = |reason: String| IoError::Open {
         device: match wanted {
             Some(w) => format!("{kind} device \"{w}\""),
-            None => format!("{kind} default output device"),
+            None => format!("{kind} default {direction} device"),
         },
         reason,
     };
@@ -451,13 +1001,12 @@ fn find_device(
         _ => "",
     };
     let Some(wanted) = wanted else {
-        return host
-            .default_output_device()
-            .ok_or_else(|| no_device(format!("the host has no output device{server_hint}")));
+        return default_device(host, direction)
+            .ok_or_else(|| no_device(format!("the host has no {direction} device{server_hint}")));
     };
 
-    let devices =
-        output_devices(host).map_err(|e| no_device(format!("cannot list output devices: {e}")))?;
+    let devices = devices_in(host, direction)
+        .map_err(|e| no_device(format!("cannot list {direction} devices: {e}")))?;
     let ids: Vec<String> = devices.iter().map(device_id).collect();
     let descriptions: Vec<String> = devices.iter().map(device_description).collect();
 
@@ -465,14 +1014,14 @@ fn find_device(
         return Ok(devices[i].clone());
     }
     // ALSA's "default" is not always among the enumerated devices, but always opens.
-    if let Some(device) = host.default_output_device()
+    if let Some(device) = default_device(host, direction)
         && device_id(&device) == wanted
     {
         return Ok(device);
     }
     // ALSA ids are canonicalised by the host ("hw:1" -> "hw:CARD=1,DEV=0").
     if let Some(device) = host.device_by_id(&cpal::DeviceId::new(host.id(), wanted))
-        && is_output(&device)
+        && goes(&device, direction)
     {
         return Ok(device);
     }
@@ -489,11 +1038,60 @@ fn find_device(
         return Ok(devices[i].clone());
     }
     let available = if ids.is_empty() {
-        format!("the host has no output device{server_hint}")
+        format!("the host has no {direction} device{server_hint}")
     } else {
-        format!("no such output device; available: {}", ids.join(", "))
+        format!("no such {direction} device; available: {}", ids.join(", "))
     };
     Err(no_device(available))
+}
+
+/// A device found and configured for one direction, not yet streaming.
+struct Opened {
+    device: cpal::Device,
+    host_kind: AudioHost,
+    name: String,
+    label: String,
+    chosen: Chosen,
+}
+
+fn open_device(config: &AudioConfig, direction: Direction) -> Result<Opened, IoError> {
+    let (host, host_kind) = open_host(config.host)?;
+    let device = find_device(&host, host_kind, config.device.as_deref(), direction)?;
+    let name = device_id(&device);
+    let label = format!("{host_kind} device \"{name}\"");
+    let chosen = choose_config(&device, &label, config, direction)?;
+    Ok(Opened {
+        device,
+        host_kind,
+        name,
+        label,
+        chosen,
+    })
+}
+
+/// Starts a built stream and describes it.
+fn play_stream(
+    stream: &cpal::Stream,
+    opened: &Opened,
+    config: &AudioConfig,
+) -> Result<StreamInfo, IoError> {
+    stream.play().map_err(|e| IoError::Open {
+        device: opened.label.clone(),
+        reason: format!("cannot start the stream: {e}"),
+    })?;
+    let buffer_frames = stream
+        .buffer_size()
+        .ok()
+        .filter(|&n| n > 0)
+        .or(config.buffer_frames);
+    Ok(StreamInfo {
+        host: opened.host_kind,
+        device: opened.name.clone(),
+        rate: config.rate,
+        channels: config.channels,
+        buffer_frames,
+        sample_format: opened.chosen.format,
+    })
 }
 
 /// The configuration picked for a device.
@@ -508,6 +1106,7 @@ fn choose_config(
     device: &cpal::Device,
     label: &str,
     config: &AudioConfig,
+    direction: Direction,
 ) -> Result<Chosen, IoError> {
     let unsupported = |reason: String| IoError::Unsupported {
         device: label.to_string(),
@@ -523,16 +1122,28 @@ fn choose_config(
         return Err(unsupported("a buffer of 0 frames requested".into()));
     }
 
-    let ranges: Vec<SupportedStreamConfigRange> = device
-        .supported_output_configs()
-        .map_err(|e| IoError::Open {
-            device: label.to_string(),
-            reason: format!("cannot read its output configurations: {e}"),
-        })?
+    let cannot_read = |e: cpal::Error| IoError::Open {
+        device: label.to_string(),
+        reason: format!("cannot read its {direction} configurations: {e}"),
+    };
+    let ranges: Vec<SupportedStreamConfigRange> = match direction {
+        Direction::Output => device
+            .supported_output_configs()
+            .map_err(cannot_read)?
+            .collect(),
+        Direction::Input => device
+            .supported_input_configs()
+            .map_err(cannot_read)?
+            .collect(),
+    };
+    let ranges: Vec<SupportedStreamConfigRange> = ranges
+        .into_iter()
         .filter(|r| format_rank(r.sample_format()).is_some())
         .collect();
     if ranges.is_empty() {
-        return Err(unsupported("it offers no PCM output configuration".into()));
+        return Err(unsupported(format!(
+            "it offers no PCM {direction} configuration"
+        )));
     }
 
     let with_channels: Vec<&SupportedStreamConfigRange> = ranges
@@ -773,6 +1384,93 @@ where
     }
 }
 
+fn build_input_stream(
+    device: &cpal::Device,
+    chosen: &Chosen,
+    shared: Arc<Shared>,
+    on_input: impl FnMut(&[f32], usize) + Send + 'static,
+) -> Result<cpal::Stream, cpal::Error> {
+    use SampleFormat as F;
+    let args = (device, chosen, shared, on_input);
+    match chosen.format {
+        F::F32 => build_input_f32(args),
+        F::F64 => build_input_converted::<f64, _>(args),
+        F::I32 => build_input_converted::<i32, _>(args),
+        F::U32 => build_input_converted::<u32, _>(args),
+        F::I24 => build_input_converted::<cpal::I24, _>(args),
+        F::U24 => build_input_converted::<cpal::U24, _>(args),
+        F::I16 => build_input_converted::<i16, _>(args),
+        F::U16 => build_input_converted::<u16, _>(args),
+        F::I64 => build_input_converted::<i64, _>(args),
+        F::U64 => build_input_converted::<u64, _>(args),
+        F::I8 => build_input_converted::<i8, _>(args),
+        F::U8 => build_input_converted::<u8, _>(args),
+        other => Err(cpal::Error::with_message(
+            cpal::ErrorKind::UnsupportedConfig,
+            format!("sample format {other} cannot carry PCM"),
+        )),
+    }
+}
+
+fn build_input_f32<R>(
+    (device, chosen, shared, mut on_input): BuildArgs<'_, R>,
+) -> Result<cpal::Stream, cpal::Error>
+where
+    R: FnMut(&[f32], usize) + Send + 'static,
+{
+    let channels = usize::from(chosen.stream.channels);
+    let mut meter = Meter::new(Arc::clone(&shared), chosen.stream.sample_rate);
+    device.build_input_stream(
+        chosen.stream,
+        move |data: &[f32], info: &InputCallbackInfo| {
+            meter.record_input(data.len() / channels, info);
+            on_input(data, channels);
+        },
+        error_counter(shared),
+        Some(BUILD_TIMEOUT),
+    )
+}
+
+fn build_input_converted<T, R>(
+    (device, chosen, shared, mut on_input): BuildArgs<'_, R>,
+) -> Result<cpal::Stream, cpal::Error>
+where
+    T: SizedSample + Send + 'static,
+    f32: FromSample<T>,
+    R: FnMut(&[f32], usize) + Send + 'static,
+{
+    let channels = usize::from(chosen.stream.channels);
+    let mut scratch = vec![0.0_f32; chosen.scratch_frames * channels];
+    let mut meter = Meter::new(Arc::clone(&shared), chosen.stream.sample_rate);
+    device.build_input_stream(
+        chosen.stream,
+        move |data: &[T], info: &InputCallbackInfo| {
+            meter.record_input(data.len() / channels, info);
+            deliver_converted(data, &mut scratch, channels, &mut on_input);
+        },
+        error_counter(shared),
+        Some(BUILD_TIMEOUT),
+    )
+}
+
+/// Converts `captured` to `f32` through the scratch buffer and delivers it, in
+/// whole-frame chunks when it is larger than the scratch (no allocation on the audio
+/// thread). `scratch.len()` is a non-zero multiple of `channels`.
+fn deliver_converted<T, R>(captured: &[T], scratch: &mut [f32], channels: usize, on_input: &mut R)
+where
+    T: SizedSample,
+    f32: FromSample<T>,
+    R: FnMut(&[f32], usize),
+{
+    for block in captured.chunks(scratch.len()) {
+        let samples = &mut scratch[..block.len()];
+        for (s, &x) in samples.iter_mut().zip(block) {
+            *s = <f32 as cpal::Sample>::from_sample(x);
+        }
+        on_input(samples, channels);
+    }
+}
+
 /// The largest `f32` below 1.0, so that full scale stays inside a 24-bit integer.
 const BELOW_ONE: f32 = 1.0 - f32::EPSILON / 2.0;
 
@@ -860,6 +1558,21 @@ impl Meter {
     }
 
     fn record(&mut self, frames: usize, info: &OutputCallbackInfo) {
+        let timestamp = info.timestamp();
+        // A host without a playback estimate gives an instant before the callback.
+        let latency = timestamp
+            .playback
+            .checked_duration_since(timestamp.callback);
+        self.record_at(frames, timestamp.callback, latency);
+    }
+
+    fn record_input(&mut self, frames: usize, info: &InputCallbackInfo) {
+        let timestamp = info.timestamp();
+        let latency = timestamp.callback.checked_duration_since(timestamp.capture);
+        self.record_at(frames, timestamp.callback, latency);
+    }
+
+    fn record_at(&mut self, frames: usize, callback: StreamInstant, latency: Option<Duration>) {
         let s = &self.shared;
         let frames_u64 = frames as u64;
         s.callbacks.fetch_add(1, Ordering::Relaxed);
@@ -867,22 +1580,17 @@ impl Meter {
         s.max_callback_frames
             .fetch_max(frames_u64, Ordering::Relaxed);
 
-        let timestamp = info.timestamp();
         if let Some((instant, previous_frames)) = self.previous
-            && let Some(interval) = timestamp.callback.checked_duration_since(instant)
+            && let Some(interval) = callback.checked_duration_since(instant)
         {
             let budget = previous_frames as f64 / self.rate;
             if interval.as_secs_f64() > 1.5 * budget {
                 s.late_callbacks.fetch_add(1, Ordering::Relaxed);
             }
         }
-        self.previous = Some((timestamp.callback, frames));
+        self.previous = Some((callback, frames));
 
-        // A host without a playback estimate gives an instant before the callback.
-        if let Some(latency) = timestamp
-            .playback
-            .checked_duration_since(timestamp.callback)
-        {
+        if let Some(latency) = latency {
             self.push_latency(u64::try_from(latency.as_nanos()).unwrap_or(NO_LATENCY - 1));
         }
     }
