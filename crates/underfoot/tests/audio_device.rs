@@ -6,6 +6,8 @@
 //! - A JACK server, with `--features jack` and `UNDERFOOT_JACK=1`, which makes it
 //!   mandatory: a correctly paced device even on a machine without audio hardware
 //!   (`jackd --no-realtime -d dummy -r 48000 -p 64`, started by `.ci/audio-setup`).
+//! - A sweep through a JACK loopback, with `UNDERFOOT_JACK_LOOPBACK=1` and a server with
+//!   large periods (see the test).
 //!
 //! A counting allocator checks that the whole audio-thread path (cpal, the conversion
 //! and metering here, the render callback) does not allocate once running.
@@ -395,7 +397,16 @@ fn jack_loopback_sweep_is_flat_and_aligned() {
     use underfoot::io::audio::{AudioLoop, LoopConfig};
     use underfoot::units::Seconds;
 
-    if !jack_enabled() {
+    // A measurement wants no low latency, and on this project's virtual machine a graph of
+    // two clients at 64-frame periods (1.33 ms) misses a deadline every few hundred
+    // milliseconds, which spoils a whole sweep; at 1024 frames it runs clean. So this test
+    // runs against its own server (`UNDERFOOT_JACK_LOOPBACK=1`, with `JACK_DEFAULT_SERVER`
+    // naming a dummy server at 1024 frames; `.ci/run` starts one) and is mandatory there.
+    if std::env::var("UNDERFOOT_JACK_LOOPBACK").as_deref() != Ok("1") {
+        println!(
+            "skipped: set UNDERFOOT_JACK_LOOPBACK=1 and JACK_DEFAULT_SERVER to a JACK server \
+             with large periods (jackd -n NAME -d dummy -r 48000 -p 1024) to run the loopback"
+        );
         return;
     }
     let _guard = one_at_a_time();
@@ -482,16 +493,7 @@ fn jack_loopback_sweep_is_flat_and_aligned() {
     // On a virtual machine the dummy server can miss deadlines in every 2 s window with
     // two chained clients; the loop then refuses to return a recording with gaps, which
     // is the behaviour wanted, but leaves nothing to check the response of.
-    let recorded = match played {
-        Err(CompensationError::Device { reason }) if reason.contains("xruns") => {
-            println!(
-                "INCONCLUSIVE: every loopback attempt had xruns, so the response was not \
-                 checked: {reason}"
-            );
-            return;
-        }
-        other => other.expect("loopback measurement"),
-    };
+    let recorded = played.expect("loopback measurement");
     let report = device.last_report().expect("report").clone();
     println!(
         "JACK loopback: patched {:.0} ms after start (lead-in {} ms); {report:?}",

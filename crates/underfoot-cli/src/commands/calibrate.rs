@@ -92,7 +92,8 @@ pub struct AudioDeviceArgs {
     /// `--device audio`: channels of the input stream (only `--in-channel` is recorded).
     #[arg(long = "input-channels", default_value_t = 2, value_name = "N")]
     pub input_channels: u16,
-    /// `--device audio`: frames per device buffer; the host's default without it.
+    /// `--device audio`: frames per device buffer; the host's default without it. A
+    /// measurement needs no low latency: large buffers (1024) keep it clear of xruns.
     #[arg(long, value_name = "FRAMES")]
     pub buffer: Option<u32>,
 }
