@@ -9,10 +9,12 @@
 //! | module | what it does |
 //! |---|---|
 //! | [`track`] | force tracks and their CSV file format |
+//! | [`calibration`] | raw sensor readings to newtons: fitted per-sensor curves, tare, their files |
 //! | [`gait`] | the vertical ground-reaction force of walking, for demos and tests |
 //! | [`condition`] | sensor rate to audio rate without zipper noise; total force, centre of pressure |
 //! | [`steps`] | heel-strike detection with hysteresis |
 //! | [`drive`] | the signal that excites the material filter: force, dF/dt, or an impulse per step |
+pub mod calibration;
 pub mod condition;
 pub mod drive;
 pub mod gait;
