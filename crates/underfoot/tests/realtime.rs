@@ -323,3 +323,39 @@ fn adapting_the_equalizer_never_allocates_or_frees() {
         assert!(drive.iter().all(|v| v.is_finite()));
     }
 }
+
+#[test]
+fn applying_a_sensor_calibration_never_allocates_or_frees() {
+    use underfoot::force::calibration::{CurveKind, SensorCalibration, fit_sensor};
+    let samples: Vec<(f64, Newtons)> = (0..40)
+        .map(|i| {
+            let load = 25.0 * f64::from(i);
+            (200.0 + (load / 0.0119).powf(1.0 / 1.4), Newtons(load))
+        })
+        .collect();
+    let power = fit_sensor("heel", &samples, CurveKind::Power).unwrap().0;
+    let piecewise = fit_sensor("toe", &samples, CurveKind::Piecewise).unwrap().0;
+    let mut calibration = SensorCalibration {
+        sensors: vec![power, piecewise],
+    };
+    calibration.tare(&[210.0, 205.0, 190.0, 195.0]).unwrap();
+    let inputs: [[f32; 2]; 5] = [
+        [200.0, 200.0],
+        [1500.0, 2500.0],
+        [1e9, -1e9],
+        [f32::NAN, f32::INFINITY],
+        [3000.0, 800.0],
+    ];
+    let mut out = [0.0_f32; 3];
+    let mut non_finite = 0;
+    let n = allocations_in(|| {
+        for raw in &inputs {
+            non_finite += calibration.apply(raw, &mut out).non_finite;
+            std::hint::black_box(&out);
+        }
+        // Fewer readings than outputs is counted, not a panic.
+        calibration.apply(&inputs[1][..1], &mut out);
+    });
+    assert_eq!(n, 0, "apply allocated or freed {n} times");
+    assert_eq!(non_finite, 2);
+}
