@@ -1020,3 +1020,53 @@ fn calibrate_on_a_sound_card_needs_the_audio_feature() {
     assert!(message.contains("hw:1"), "{message}");
     assert!(!out.exists());
 }
+
+#[test]
+fn calibrate_sensors_fits_saves_and_reports_residuals() {
+    let dir = tempfile::tempdir().unwrap();
+    let readings = dir.path().join("scale.csv");
+    let mut csv = String::from("# lab scale session\nsensor,raw,load_n\n");
+    for i in 0..30 {
+        let load = 30.0 * f64::from(i);
+        for (name, r0) in [("heel", 200.0), ("toe", 150.0)] {
+            let raw = r0 + (load / 0.0119_f64).powf(1.0 / 1.4);
+            csv.push_str(&format!("{name},{raw:.1},{load}\n"));
+        }
+    }
+    fs::write(&readings, csv).unwrap();
+    let out = dir.path().join("sensors.json");
+    for kind in ["power", "piecewise"] {
+        let o = run(&[
+            "calibrate",
+            "sensors",
+            "--readings",
+            s(&readings),
+            "--out",
+            s(&out),
+            "--kind",
+            kind,
+        ]);
+        assert_ok(&o);
+        let text = stdout(&o);
+        assert!(
+            text.contains("heel") && text.contains("toe") && text.contains("rms N"),
+            "{text}"
+        );
+        let cal = underfoot::force::calibration::SensorCalibration::load(&out).unwrap();
+        assert_eq!(cal.sensors.len(), 2);
+    }
+
+    fs::write(&readings, "sensor,raw,load_n\nheel,200,0\nheel,oops,10\n").unwrap();
+    let message = assert_error(&run(&[
+        "calibrate",
+        "sensors",
+        "--readings",
+        s(&readings),
+        "--out",
+        s(&out),
+    ]));
+    assert!(
+        message.contains("scale.csv") && message.contains("line 3"),
+        "{message}"
+    );
+}

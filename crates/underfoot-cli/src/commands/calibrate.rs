@@ -1,4 +1,5 @@
-//! `underfoot calibrate`: measure the device, equalize it, fit a user's limb model.
+//! `underfoot calibrate`: measure the device, equalize it, fit a user's limb model, and
+//! calibrate the force sensors.
 
 use std::path::{Path, PathBuf};
 
@@ -15,6 +16,7 @@ use underfoot::compensation::sweep::{
     Device, FrequencyResponse, MeasuredDevice, SimulatedTile, Sweep, SweepConfig, TileConfig,
     measure,
 };
+use underfoot::force::calibration::{CurveKind, CurveModel, SensorCalibration, read_session};
 use underfoot::units::{Band, Decibels, Hz, SampleRate, Seconds};
 
 use crate::output::emit;
@@ -30,6 +32,8 @@ pub enum CalibrateCommand {
     Equalize(EqualizeArgs),
     /// Fit a user's rheological limb model (equations 1-3) to loaded sweeps.
     Limb(LimbArgs),
+    /// Fit each force sensor's curve from readings under known loads (a lab scale).
+    Sensors(SensorsArgs),
 }
 
 /// Where sweeps are played and recorded.
@@ -343,6 +347,22 @@ pub struct LimbArgs {
     pub plot: Option<PathBuf>,
 }
 
+/// `underfoot calibrate sensors`.
+#[derive(Debug, Clone, Args)]
+pub struct SensorsArgs {
+    /// The calibration session: CSV rows of `sensor,raw,load_n` (raw reading, known load
+    /// in newtons).
+    #[arg(long, value_name = "FILE.csv")]
+    pub readings: PathBuf,
+    /// Where to write the sensor calibration (JSON).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// The curve: `power` (F = a (r - r0)^b, the FSR conductance law) or `piecewise`
+    /// (monotone, for dense data).
+    #[arg(long, default_value = "power", value_parser = clap::value_parser!(CurveKind))]
+    pub kind: CurveKind,
+}
+
 /// A user: a limb file, Table 1's mean (`table1`), or three parameters.
 #[derive(Debug, Clone)]
 pub enum UserArg {
@@ -398,7 +418,53 @@ pub fn run(cmd: &CalibrateCommand) -> anyhow::Result<()> {
         CalibrateCommand::Sweep(args) => sweep(args),
         CalibrateCommand::Equalize(args) => equalize_cmd(args),
         CalibrateCommand::Limb(args) => limb(args),
+        CalibrateCommand::Sensors(args) => sensors(args),
     }
+}
+
+fn sensors(args: &SensorsArgs) -> anyhow::Result<()> {
+    let session = read_session(&args.readings)?;
+    let (calibration, reports) = SensorCalibration::fit(&session, args.kind)
+        .with_context(|| format!("fitting the sensors of {}", args.readings.display()))?;
+    calibration.save(&args.out)?;
+    let rows: Vec<Vec<String>> = reports
+        .iter()
+        .zip(&calibration.sensors)
+        .map(|(r, c)| {
+            let model = match &c.model {
+                CurveModel::Power { a, b, r0 } => format!("{a:.4e} (r - {r0:.1})^{b:.3}"),
+                CurveModel::Piecewise { knots } => format!("{} knots", knots.len()),
+            };
+            vec![
+                r.sensor.clone(),
+                r.points.to_string(),
+                format!("{:.0}-{:.0}", r.load_range.0.0, r.load_range.1.0),
+                format!("{:.2}", r.rms_error.0),
+                format!("{:.2}", r.max_error.0),
+                r.downweighted.to_string(),
+                model,
+            ]
+        })
+        .collect();
+    let text = table(
+        &[
+            ("sensor", Align::Left),
+            ("points", Align::Right),
+            ("load N", Align::Right),
+            ("rms N", Align::Right),
+            ("max N", Align::Right),
+            ("outliers", Align::Right),
+            ("curve", Align::Left),
+        ],
+        &rows,
+    );
+    emit(&format!(
+        "{} curves of {} sensors from {}\n{text}wrote {}\n",
+        args.kind,
+        reports.len(),
+        args.readings.display(),
+        args.out.display()
+    ))
 }
 
 fn limb(args: &LimbArgs) -> anyhow::Result<()> {
