@@ -438,7 +438,7 @@ fn sensors(args: &SensorsArgs) -> anyhow::Result<()> {
             vec![
                 r.sensor.clone(),
                 r.points.to_string(),
-                format!("{:.0}-{:.0}", r.load_range.0.0, r.load_range.1.0),
+                format!("{:.0} to {:.0}", r.load_range.0.0, r.load_range.1.0),
                 format!("{:.2}", r.rms_error.0),
                 format!("{:.2}", r.max_error.0),
                 r.downweighted.to_string(),

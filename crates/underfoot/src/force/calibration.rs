@@ -897,7 +897,8 @@ impl SensorCalibration {
     /// Turns one instant's raw readings into newtons, sensor `i`'s reading `raw[i]` into
     /// `out[i]`. Real-time safe: no allocation, no panic.
     ///
-    /// Readings outside a curve's range are clamped to it; non-finite readings give 0 N;
+    /// Readings outside a curve's range are clamped to it; non-finite readings (and a
+    /// force too large for `f32`) give 0 N;
     /// an output with no reading or no curve (the slices are shorter than `out`) gives
     /// 0 N. All are counted in the returned [`ApplyStats`]; extra readings are ignored.
     pub fn apply(&self, raw: &[f32], out: &mut [f32]) -> ApplyStats {
@@ -910,6 +911,12 @@ impl SensorCalibration {
             };
             match curve.force(f64::from(r)) {
                 None => {
+                    *o = 0.0;
+                    stats.non_finite += 1;
+                }
+                // Only a hand-edited file's extreme scale can overflow f32; treat it as
+                // a bad reading rather than pass infinity to the synthesis.
+                Some((f, _)) if !(f.0 as f32).is_finite() => {
                     *o = 0.0;
                     stats.non_finite += 1;
                 }
@@ -1363,6 +1370,22 @@ mod tests {
         );
         let stats = cal.apply(&[-1e9, 0.0, 7.0], &mut out[..2]);
         assert_eq!(stats.below_range, 2);
+
+        let huge = SensorCalibration {
+            sensors: vec![SensorCurve {
+                name: "edited".to_owned(),
+                model: CurveModel::Power {
+                    a: 1e300,
+                    b: 1.0,
+                    r0: 0.0,
+                },
+                raw_range: [0.0, 10.0],
+                drift: 0.0,
+            }],
+        };
+        huge.validate("edited.json").unwrap();
+        let stats = huge.apply(&[5.0], &mut out[..1]);
+        assert_eq!((out[0], stats.non_finite), (0.0, 1));
         assert!(out[0] >= 0.0 && out[0] < 1.0);
     }
 
