@@ -405,7 +405,13 @@ impl SensorCurve {
         } else {
             std::cmp::Ordering::Equal
         };
-        let r = r.clamp(lo, hi);
+        // Not f64::clamp: it panics on a reversed range, and a curve built in memory
+        // may not have been validated.
+        let r = match side {
+            std::cmp::Ordering::Less => lo,
+            std::cmp::Ordering::Greater => hi,
+            std::cmp::Ordering::Equal => r,
+        };
         let f = match &self.model {
             CurveModel::Power { a, b, r0 } => power(*a, *b, *r0, r),
             CurveModel::Piecewise { knots } => interpolate(knots, r),
@@ -516,8 +522,11 @@ fn interpolate(knots: &[[f64; 2]], r: f64) -> f64 {
     if r >= last[0] {
         return last[1];
     }
-    // The first knot strictly above r; at least 1 and below len because of the checks.
-    let i = knots.partition_point(|k| k[0] <= r);
+    // The first knot strictly above r. The clamp only matters for unsorted knots (a
+    // curve built in memory and never validated), where it keeps the indexing in bounds.
+    let i = knots
+        .partition_point(|k| k[0] <= r)
+        .clamp(1, knots.len() - 1);
     let ([r1, f1], [r2, f2]) = (knots[i - 1], knots[i]);
     f1 + (f2 - f1) * (r - r1) / (r2 - r1)
 }
@@ -1541,6 +1550,48 @@ mod tests {
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
+
+        #[test]
+        fn fitting_and_applying_never_panic(
+            points in prop::collection::vec((-1e6f64..1e6, -1e4f64..1e4), 0..60),
+            piecewise in any::<bool>(),
+            probes in prop::collection::vec(any::<f32>(), 0..8),
+        ) {
+            // Half the cases trend upwards, so that they reach the solver rather than
+            // stop at the monotonicity check.
+            let trend = if piecewise == (points.len() % 2 == 0) { 0.01 } else { 0.0 };
+            let samples: Vec<(f64, Newtons)> = points
+                .iter()
+                .map(|&(r, l)| (r, Newtons(l * (1.0 - 99.0 * trend) + trend * r)))
+                .collect();
+            let kind = if piecewise { CurveKind::Piecewise } else { CurveKind::Power };
+            if let Ok((curve, report)) = fit_sensor("any", &samples, kind) {
+                prop_assert!(report.rms_error.0.is_finite());
+                let cal = SensorCalibration { sensors: vec![curve.clone(), curve] };
+                let mut out = [0.0_f32; 4];
+                cal.apply(&probes, &mut out);
+                prop_assert!(out.iter().all(|v| v.is_finite()));
+            }
+        }
+
+        #[test]
+        fn unvalidated_curves_never_panic(
+            knots in prop::collection::vec(prop::array::uniform2(any::<f64>()), 0..6),
+            range in prop::array::uniform2(any::<f64>()),
+            probes in prop::collection::vec(any::<f32>(), 0..8),
+        ) {
+            let cal = SensorCalibration {
+                sensors: vec![SensorCurve {
+                    name: "raw".to_owned(),
+                    model: CurveModel::Piecewise { knots },
+                    raw_range: range,
+                    drift: 0.0,
+                }],
+            };
+            let mut out = [0.0_f32; 2];
+            cal.apply(&probes, &mut out);
+            prop_assert!(out.iter().all(|v| v.is_finite()));
+        }
 
         #[test]
         fn piecewise_is_monotone_for_any_input(
