@@ -5,8 +5,8 @@
 //!
 //! A force-sensing resistor (FSR) is a polymer film whose contact area grows with the
 //! force pressing it, so its *conductance* `G = 1/R` rises roughly as a power of force,
-//! `G ∝ F^k` with `k` near 1 (Interlink's integration guide shows the
-//! `log R` against `log F` line of their 402). Read through a transimpedance amplifier (the
+//! `G ∝ F^k` with `k` near 1 (FSR data sheets plot `log R` against `log F` as a
+//! nearly straight line over the working range). Read through a transimpedance amplifier (the
 //! circuit Interlink recommends) the raw reading is proportional to conductance plus an
 //! offset, so force is a power of the reading above that offset:
 //!
