@@ -261,16 +261,12 @@ pub struct StreamStats {
 }
 
 /// A running output stream. Dropping it stops the stream as [`AudioOutput::stop`] does.
-pub struct AudioOutput {
-    stream: cpal::Stream,
-    info: StreamInfo,
-    shared: Arc<Shared>,
-}
+pub struct AudioOutput(Running);
 
 impl fmt::Debug for AudioOutput {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.debug_struct("AudioOutput")
-            .field("info", &self.info)
+            .field("info", &self.0.info)
             .field("stats", &self.stats())
             .finish_non_exhaustive()
     }
@@ -302,28 +298,41 @@ impl AudioOutput {
                 ),
             })?;
         let info = play_stream(&stream, &opened, config)?;
-        Ok(Self {
+        Ok(Self(Running {
             stream,
             info,
             shared,
-        })
+        }))
     }
 
     /// What was opened.
     #[must_use]
     pub fn info(&self) -> &StreamInfo {
-        &self.info
+        &self.0.info
     }
 
     /// Counts so far, read without disturbing the audio thread.
     #[must_use]
     pub fn stats(&self) -> StreamStats {
-        self.shared.snapshot()
+        self.0.shared.snapshot()
     }
 
     /// Stops the stream, waits for the audio thread to let go of the callback, and
     /// returns the final counts.
     pub fn stop(self) -> StreamStats {
+        self.0.stop()
+    }
+}
+
+/// A started stream of either direction, with what its audio thread records.
+struct Running {
+    stream: cpal::Stream,
+    info: StreamInfo,
+    shared: Arc<Shared>,
+}
+
+impl Running {
+    fn stop(self) -> StreamStats {
         // Pausing first makes the host output silence rather than cut off mid-buffer on
         // hosts that keep running until the stream is torn down. Failure to pause changes
         // nothing: dropping the stream stops it anyway.
@@ -334,16 +343,12 @@ impl AudioOutput {
 }
 
 /// A running input stream. Dropping it stops the stream as [`AudioInput::stop`] does.
-pub struct AudioInput {
-    stream: cpal::Stream,
-    info: StreamInfo,
-    shared: Arc<Shared>,
-}
+pub struct AudioInput(Running);
 
 impl fmt::Debug for AudioInput {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.debug_struct("AudioInput")
-            .field("info", &self.info)
+            .field("info", &self.0.info)
             .field("stats", &self.stats())
             .finish_non_exhaustive()
     }
@@ -380,17 +385,17 @@ impl AudioInput {
             ),
         })?;
         let info = play_stream(&stream, &opened, config)?;
-        Ok(Self {
+        Ok(Self(Running {
             stream,
             info,
             shared,
-        })
+        }))
     }
 
     /// What was opened.
     #[must_use]
     pub fn info(&self) -> &StreamInfo {
-        &self.info
+        &self.0.info
     }
 
     /// Counts so far, read without disturbing the audio thread. For an input,
@@ -398,15 +403,13 @@ impl AudioInput {
     /// minus the host's capture instant.
     #[must_use]
     pub fn stats(&self) -> StreamStats {
-        self.shared.snapshot()
+        self.0.shared.snapshot()
     }
 
     /// Stops the stream, waits for the audio thread to let go of the callback, and
     /// returns the final counts.
     pub fn stop(self) -> StreamStats {
-        let _ = self.stream.pause();
-        drop(self.stream);
-        self.shared.snapshot()
+        self.0.stop()
     }
 }
 
