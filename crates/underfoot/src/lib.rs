@@ -24,6 +24,8 @@
 //! [`Hz`](units::Hz), and neither is a bare `f64`.
 //!
 //! Every stage reports bad input through its own error enum; nothing panics on a bad file.
+//! Every file is saved through [`atomic_file`], so a failed save leaves the old file as it
+//! was.
 //!
 //! # Quick start
 //!
@@ -113,6 +115,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 pub mod analysis;
+pub mod atomic_file;
 pub mod compensation;
 pub mod engine;
 pub mod fit;

@@ -19,10 +19,10 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::Args;
 use serde::Serialize;
+use underfoot::atomic_file::write_atomic;
 use underfoot::engine::offline::{render, segment_lsd, walk_across};
 use underfoot::force::gait::GaitConfig;
 use underfoot::io::wav::{WavFormat, WavSink};
-use underfoot::material::library::write_atomic;
 use underfoot::units::Decibels;
 
 use crate::commands::synth::SynthArgs;

@@ -12,10 +12,11 @@ use anyhow::{Context, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use underfoot::analysis::SavgolSetting;
+use underfoot::atomic_file::write_atomic;
 use underfoot::fit::OrderChoice;
 use underfoot::material::Library;
 use underfoot::material::build::{BuildConfig, Progress, build_material};
-use underfoot::material::library::{validate_name, write_atomic};
+use underfoot::material::library::validate_name;
 use underfoot::recording::{self, CsvSpec};
 use underfoot::units::{Band, Decibels, SampleRate};
 

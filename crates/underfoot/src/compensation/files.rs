@@ -14,7 +14,7 @@ use super::CompensationError;
 use super::equalizer::{PassReport, Realisation, SpectralWeights};
 use super::limb::LimbModel;
 use super::sweep::FrequencyResponse;
-use crate::material::library::write_atomic;
+use crate::atomic_file::write_atomic;
 use crate::units::{Band, Hz, SampleRate};
 
 /// The version of every compensation file this build reads and writes.

@@ -71,8 +71,8 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::atomic_file::{AtomicWriteError, write_atomic};
 use crate::fit::trf::{FnResiduals, TrfError, TrfOptions, least_squares_bounded};
-use crate::material::library::{LibraryError, write_atomic};
 use crate::units::Newtons;
 
 /// The `kind` tag of a calibration file.
@@ -386,6 +386,16 @@ pub enum CalibrationError {
         /// What is wrong.
         reason: String,
     },
+}
+
+impl From<AtomicWriteError> for CalibrationError {
+    fn from(e: AtomicWriteError) -> Self {
+        Self::Io {
+            path: e.path,
+            action: e.action,
+            source: e.source,
+        }
+    }
 }
 
 impl SensorCurve {
@@ -1063,22 +1073,7 @@ impl SensorCalibration {
     /// What [`SensorCalibration::validate`] finds, or [`CalibrationError::Io`].
     pub fn save(&self, path: &Path) -> Result<(), CalibrationError> {
         self.validate(&path.display().to_string())?;
-        write_atomic(path, self.to_json().as_bytes()).map_err(|e| match e {
-            LibraryError::Io {
-                path,
-                action,
-                source,
-            } => CalibrationError::Io {
-                path,
-                action,
-                source,
-            },
-            other => CalibrationError::Io {
-                path: path.to_path_buf(),
-                action: "writing",
-                source: std::io::Error::other(other.to_string()),
-            },
-        })
+        Ok(write_atomic(path, self.to_json().as_bytes())?)
     }
 }
 

@@ -44,7 +44,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use super::{MAX_SENSORS, SensorReading};
-use crate::material::library::{LibraryError, write_atomic};
+use crate::atomic_file::{AtomicWriteError, write_atomic};
 use crate::units::Seconds;
 
 /// The name of the time column, always the first.
@@ -231,6 +231,16 @@ pub enum TrackError {
     },
 }
 
+impl From<AtomicWriteError> for TrackError {
+    fn from(e: AtomicWriteError) -> Self {
+        Self::Io {
+            path: e.path,
+            action: e.action,
+            source: e.source,
+        }
+    }
+}
+
 impl ForceTrack {
     /// Reads and checks a force track file; see the [module docs](self) for the format.
     ///
@@ -407,22 +417,7 @@ impl ForceTrack {
     /// the file and the step that failed.
     pub fn save(&self, path: &Path) -> Result<(), TrackError> {
         self.validate(&path.display().to_string())?;
-        write_atomic(path, self.to_csv().as_bytes()).map_err(|e| match e {
-            LibraryError::Io {
-                path,
-                action,
-                source,
-            } => TrackError::Io {
-                path,
-                action,
-                source,
-            },
-            other => TrackError::Io {
-                path: path.to_path_buf(),
-                action: "writing",
-                source: std::io::Error::other(other.to_string()),
-            },
-        })
+        Ok(write_atomic(path, self.to_csv().as_bytes())?)
     }
 
     /// The time from the first row to the last (zero for fewer than two rows).

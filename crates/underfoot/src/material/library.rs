@@ -47,13 +47,12 @@
 
 use std::fmt;
 use std::fs;
-use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use serde::{Deserialize, Serialize};
 
 use super::MaterialModel;
+use crate::atomic_file::{AtomicWriteError, write_atomic};
 
 /// The format tag of the library files this version reads and writes.
 pub const FORMAT: &str = "underfoot.library/1";
@@ -138,6 +137,16 @@ pub enum LibraryError {
         /// The names the library does hold.
         available: Vec<String>,
     },
+}
+
+impl From<AtomicWriteError> for LibraryError {
+    fn from(e: AtomicWriteError) -> Self {
+        Self::Io {
+            path: e.path,
+            action: e.action,
+            source: e.source,
+        }
+    }
 }
 
 fn supported_list() -> String {
@@ -269,7 +278,7 @@ impl Library {
     pub fn save(&self, path: impl AsRef<Path>) -> Result<(), LibraryError> {
         let path = path.as_ref();
         self.validate_as(&format!("library to be saved to {}", path.display()))?;
-        write_atomic(path, self.to_json().as_bytes())
+        Ok(write_atomic(path, self.to_json().as_bytes())?)
     }
 
     /// Inserts `model`, replacing (in place) a material of the same name.
@@ -534,75 +543,6 @@ fn strip_position(message: &str) -> String {
         Some(i) => message[..i].to_string(),
         None => message.to_string(),
     }
-}
-
-/// Writes `contents` to `path` atomically: a temporary file in the same directory,
-/// flushed to disk, renamed over `path`.
-///
-/// Public so that tools writing files next to a library (reports) get the same guarantee.
-/// If `path` already exists its permissions are kept. On error the temporary file is
-/// removed and `path` is untouched.
-///
-/// # Errors
-/// [`LibraryError::Io`] naming the file and the step that failed.
-pub fn write_atomic(path: &Path, contents: &[u8]) -> Result<(), LibraryError> {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let io = |p: &Path, action: &'static str| {
-        let p = p.to_path_buf();
-        move |source| LibraryError::Io {
-            path: p,
-            action,
-            source,
-        }
-    };
-    let file_name = path.file_name().ok_or_else(|| {
-        io(path, "choosing a temporary file")(std::io::Error::new(
-            std::io::ErrorKind::InvalidInput,
-            "the path does not name a file",
-        ))
-    })?;
-    // Same directory as the target, so that the rename stays on one file system and is
-    // atomic; pid and counter keep concurrent writers out of each other's way.
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let tmp_name = format!(
-        ".{}.tmp-{}-{}",
-        file_name.to_string_lossy(),
-        std::process::id(),
-        COUNTER.fetch_add(1, Ordering::Relaxed)
-    );
-    let tmp = dir.join(tmp_name);
-
-    let result = (|| {
-        let mut f = fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(&tmp)
-            .map_err(io(&tmp, "creating a temporary file"))?;
-        f.write_all(contents)
-            .map_err(io(&tmp, "writing the temporary file"))?;
-        if let Ok(meta) = fs::metadata(path) {
-            f.set_permissions(meta.permissions())
-                .map_err(io(&tmp, "copying permissions to the temporary file"))?;
-        }
-        f.sync_all()
-            .map_err(io(&tmp, "flushing the temporary file to disk"))?;
-        drop(f);
-        fs::rename(&tmp, path).map_err(io(path, "renaming the temporary file over it"))
-    })();
-    if result.is_err() {
-        // Best effort: the error that matters is the one being returned.
-        let _ = fs::remove_file(&tmp);
-        return result;
-    }
-    // Make the rename itself durable. Not every platform can open a directory; the data
-    // is already safe in the file, so a failure here is not worth failing the save.
-    if let Ok(d) = fs::File::open(&dir) {
-        let _ = d.sync_all();
-    }
-    Ok(())
 }
 
 #[cfg(test)]
