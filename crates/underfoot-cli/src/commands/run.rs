@@ -18,7 +18,9 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, bail};
 use clap::Args;
 use underfoot::engine::{self, Engine, TimedEvent};
+use underfoot::force::calibration::SensorCalibration;
 use underfoot::force::gait::{self, GaitConfig};
+use underfoot::force::scale::CountScale;
 use underfoot::force::track::ForceTrack;
 use underfoot::io::osc::OscSource;
 use underfoot::io::replay::ReplaySource;
@@ -65,9 +67,13 @@ pub struct RunArgs {
         value_name = "N[,N...]"
     )]
     layout: Vec<usize>,
-    /// Newtons per ADC count of the serial sensors.
+    /// Newtons per ADC count of the serial sensors (when no --sensors calibration).
     #[arg(long = "newtons-per-count", default_value_t = 0.5, value_name = "N")]
     newtons_per_count: f32,
+    /// Per-sensor calibration of the serial sensors, from `underfoot calibrate sensors`
+    /// (one curve per sensor of the frame, in frame order); replaces --newtons-per-count.
+    #[arg(long, value_name = "FILE.json")]
+    sensors: Option<PathBuf>,
     /// List the audio devices and exit.
     #[arg(long = "list-devices")]
     list_devices: bool,
@@ -227,11 +233,17 @@ fn open_input(args: &RunArgs) -> anyhow::Result<(Input, Option<usize>, bool)> {
             )
         }
         "serial" => {
+            let scale = match &args.sensors {
+                Some(path) => CountScale::calibrated(&SensorCalibration::load(path)?),
+                None => CountScale::Uniform {
+                    newtons_per_count: args.newtons_per_count,
+                },
+            };
             let config = SerialConfig {
                 port: rest.to_string(),
                 baud: args.baud,
                 layout: args.layout.clone(),
-                newtons_per_count: args.newtons_per_count,
+                scale,
             };
             let layout = args.layout.len();
             (
