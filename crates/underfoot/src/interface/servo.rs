@@ -470,14 +470,6 @@ mod tests {
         Servo::new(config(dead_band, rate, false), 2).unwrap()
     }
 
-    fn hold(s: &mut Servo, f: f64, seconds: f64) -> f64 {
-        let mut p = s.position();
-        for _ in 0..(seconds / 0.01) as usize {
-            p = s.update(Some(Newtons(f)), Seconds(0.01));
-        }
-        p
-    }
-
     #[test]
     fn force_maps_linearly_from_threshold_to_full() {
         let s = servo(0.0, 1e9);
