@@ -808,6 +808,30 @@ gait = "steps=4"
     }
 
     #[test]
+    fn the_example_files_parse() {
+        let serial = parse(include_str!("../../../../examples/prosthetic.toml")).unwrap();
+        assert!(
+            matches!(serial.link, Link::Serial { ref port, baud: 115_200 } if port == "/dev/ttyACM0")
+        );
+        assert_eq!(
+            (
+                serial.sensors.len(),
+                serial.servos.len(),
+                serial.channels.len()
+            ),
+            (3, 3, 4)
+        );
+        // The reversed toe servo.
+        assert!(serial.servos[2].calibration.full < serial.servos[2].calibration.rest);
+        let sim = parse(include_str!(
+            "../../../../examples/prosthetic-simulated.toml"
+        ))
+        .unwrap();
+        assert!(matches!(sim.link, Link::Simulated(_)));
+        assert_eq!(sim.servos, serial.servos);
+    }
+
+    #[test]
     fn serial_link_and_calibration_file() {
         use crate::force::calibration::{CurveModel, SensorCurve};
         let text = GOOD
