@@ -1423,6 +1423,76 @@ mod tests {
             s.get_mut().write_all(&wire)
         }
 
+        /// Run-time calibration: each sensor's counts go through its own curve from a
+        /// `SensorCalibration`, clamped to the fitted range, instead of one factor.
+        #[test]
+        fn per_sensor_calibration_scales_each_sensor() {
+            use crate::force::calibration::{CurveModel, SensorCalibration, SensorCurve};
+            let curve = |name: &str, a: f64, b: f64| SensorCurve {
+                name: name.into(),
+                model: CurveModel::Power { a, b, r0: 100.0 },
+                raw_range: [100.0, 4000.0],
+                drift: 0.0,
+            };
+            let calibration = SensorCalibration {
+                sensors: vec![curve("heel", 0.5, 1.0), curve("toe", 0.01, 1.5)],
+            };
+            let (mut master, slave) = TTYPort::pair().expect("pseudo-terminal pair");
+            master.set_timeout(Duration::from_secs(5)).unwrap();
+            let config = SerialConfig {
+                port: slave.name().expect("the slave end has a path"),
+                baud: 115_200,
+                layout: vec![2],
+                scale: CountScale::calibrated(&calibration),
+            };
+            let mut source = SerialSource::open(&config).expect("open the slave end");
+            // A calibration for three sensors does not fit a two-sensor layout.
+            let mut wrong = config.clone();
+            wrong.layout = vec![3];
+            assert!(matches!(
+                SerialSource::open(&wrong),
+                Err(IoError::Unsupported { .. })
+            ));
+            let rows: [[u16; 2]; 4] = [[100, 100], [300, 500], [2100, 1700], [9000, 50]];
+            let mut s = ReferenceSender::new(master);
+            for r in rows {
+                s.send_counts(&r).unwrap();
+            }
+            let mut events = Vec::new();
+            let deadline = Instant::now() + Duration::from_secs(10);
+            while events.len() < rows.len() && Instant::now() < deadline {
+                source
+                    .poll(Duration::from_millis(20), &mut |e| events.push(e))
+                    .unwrap();
+            }
+            assert_eq!(events.len(), rows.len());
+            for (e, r) in events.iter().zip(rows) {
+                let want: Vec<f32> = calibration
+                    .sensors
+                    .iter()
+                    .zip(r)
+                    .map(|(c, raw)| c.force(f64::from(raw)).unwrap().0.0 as f32)
+                    .collect();
+                let Event::Force {
+                    channel: 0,
+                    reading,
+                } = e
+                else {
+                    panic!("{e:?}")
+                };
+                assert_eq!(reading.as_slice(), &want[..]);
+            }
+            // The heel at 300 counts is 0.5 N per count above 100; the last row is
+            // clamped above the heel's range and below the toe's.
+            let Event::Force { reading, .. } = events[1] else {
+                unreachable!()
+            };
+            assert_eq!(reading.as_slice()[0], 100.0);
+            let stats = source.scaling_stats();
+            assert_eq!((stats.above_range, stats.below_range), (1, 1));
+            drop(s);
+        }
+
         #[test]
         fn good_frames_survive_a_bad_line() {
             let (mut master, slave) = TTYPort::pair().expect("pseudo-terminal pair");
