@@ -1,6 +1,12 @@
 //! `underfoot run`: the live engine. Force from a replayed track, a generated walk, a
 //! serial port or OSC; vibration to an audio device, a WAV file or nowhere (`null`).
 //!
+//! `--interface prosthetic.toml` replaces `--input` with a prosthetic-skin interface
+//! (`underfoot::io::prosthetic`): its insole frames become force events, one vibration
+//! channel per `[[channel]]`, and its servo frames are written by the same poll below,
+//! never by the audio thread. A simulated interface ends, like a walk, when its walk is
+//! over.
+//!
 //! The input is polled on this thread and crosses to the audio thread over the engine's
 //! lock-free queue. `wav:` and `null` outputs are paced by a thread that renders one
 //! buffer per buffer period, like a device would, so a session can run without one.

@@ -481,8 +481,8 @@ impl InterfaceConfig {
                 index: s.index,
             });
         }
-        // Frame slots nobody named are read but unused: scale them by 0-free unit factor
-        // rather than refuse the frame, so firmware can send spare channels.
+        // Frame slots no sensor names are carried but unused: give them a unit factor
+        // rather than refuse the frame, so a board may send spare channels.
         let scale = CountScale::PerSensor(
             scales
                 .into_iter()

@@ -7,7 +7,7 @@
 //! - [`ProstheticHost`], the host: an [`EventSource`] that decodes insole frames, scales
 //!   them to newtons (per-sensor calibration or a factor, [`CountScale`]), hands one
 //!   [`Event::Force`] per vibration channel to the engine, feeds the
-//!   [`ServoBank`](crate::interface::servo::ServoBank), and writes a servo frame every
+//!   [`ServoBank`], and writes a servo frame every
 //!   `1 / servo_rate_hz` seconds. All of it runs in [`EventSource::poll`], i.e. on the
 //!   input poll thread, never the audio thread; a poll waits no longer than the next
 //!   servo frame is due, so the servo rate holds whatever timeout the caller passes.
@@ -79,7 +79,8 @@ pub struct ProstheticStats {
     pub events: u64,
     /// Times the insole input stopped for longer than the timeout.
     pub input_timeouts: u64,
-    /// Insole frames whose force was not finite at some servo (held, see `interface::servo`).
+    /// Servo updates whose force was not finite (the target was held, see
+    /// `interface::servo`).
     pub non_finite: u64,
     /// Scaling: readings clamped to a calibration's range, non-finite results.
     pub scaling: ApplyStats,
@@ -461,7 +462,7 @@ impl SimulatedFoot {
     pub fn heel_midfoot_toe(&self, i: usize) -> [f32; 3] {
         let (heel, toe) = self.rows.get(i).copied().unwrap_or((0.0, 0.0));
         let f = heel + toe;
-        if !(f > 0.0) {
+        if !(f.is_finite() && f > 0.0) {
             return [0.0; 3];
         }
         let p = (toe / f).clamp(0.0, 1.0);
