@@ -933,6 +933,73 @@ slew_us_per_s = 4000
         assert_eq!(servo_unknown, bad_count / 4);
     }
 
+    /// When the insole stops mid-stance, the host keeps sending servo frames and their
+    /// targets walk back to rest at the rate limit, after the input timeout.
+    #[cfg(unix)]
+    #[test]
+    fn servos_return_to_rest_when_the_insole_stops() {
+        use serialport::TTYPort;
+        let config = sim_config(100, "steps=1");
+        let (mut device, host_end) = TTYPort::pair().expect("pseudo-terminal pair");
+        device.set_timeout(Duration::from_millis(5)).unwrap();
+        let mut host = ProstheticHost::with_port(Box::new(host_end), "pty", &config).unwrap();
+        let stop = Arc::new(AtomicBool::new(false));
+        let board = {
+            let stop = Arc::clone(&stop);
+            thread::spawn(move || {
+                let mut sender = ReferenceSender::new(device);
+                let mut decoder = FrameDecoder::new();
+                let mut got: Vec<(Instant, Vec<u16>)> = Vec::new();
+                let mut buf = [0u8; 256];
+                let start = Instant::now();
+                while !stop.load(Ordering::SeqCst) {
+                    // Full force on the heel (1000 counts = 500 N) for 0.4 s, then silence.
+                    if start.elapsed() < Duration::from_millis(400) {
+                        sender.send_counts(&[1000, 0, 0]).unwrap();
+                    }
+                    if let Ok(n) = sender.get_mut().read(&mut buf) {
+                        decoder.push(&buf[..n], |f| {
+                            if let Frame::Servo(f) = f {
+                                got.push((Instant::now(), f.targets().to_vec()));
+                            }
+                        });
+                    }
+                }
+                (start, got)
+            })
+        };
+        let until = Instant::now() + Duration::from_millis(1200);
+        while Instant::now() < until {
+            host.poll(Duration::from_millis(20), &mut |_| {}).unwrap();
+        }
+        stop.store(true, Ordering::SeqCst);
+        let (start, got) = board.join().unwrap();
+        let stats = host.stats();
+        assert_eq!(stats.input_timeouts, 1, "{stats:?}");
+        // The heel servo reached full pressure while the insole was live ...
+        let peak = got.iter().map(|(_, t)| t[0]).max().unwrap();
+        assert_eq!(peak, 2000);
+        // ... and is back at rest at the end, having moved no faster than its rate limit
+        // (6000 µs/s) between frames.
+        assert_eq!(got.last().unwrap().1[0], 1000);
+        for w in got.windows(2) {
+            let dt = w[1].0.duration_since(w[0].0).as_secs_f64();
+            let moved = (f64::from(w[1].1[0]) - f64::from(w[0].1[0])).abs();
+            // Arrival times jitter around the sending times: allow a frame period.
+            assert!(
+                moved <= 6000.0 * (dt + 0.01) + 1.0,
+                "moved {moved} µs in {dt} s"
+            );
+        }
+        // Not before the timeout: full pressure held until 0.4 s + 0.1 s.
+        let left_full = got
+            .iter()
+            .find(|(t, v)| t.duration_since(start) > Duration::from_millis(400) && v[0] < 2000)
+            .map(|(t, _)| t.duration_since(start).as_secs_f64())
+            .unwrap();
+        assert!(left_full >= 0.45, "left full pressure at {left_full} s");
+    }
+
     /// The host and the simulated board over a pty, in real time: the engine gets force
     /// events, the servos follow heel, midfoot, toe in order within each step, and return to
     /// rest after the walk.
