@@ -1070,3 +1070,118 @@ fn calibrate_sensors_fits_saves_and_reports_residuals() {
         "{message}"
     );
 }
+
+/// The commented example interface configurations, at the workspace root.
+fn example(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../examples")
+        .join(name)
+}
+
+/// The first number before `what` in `text`, e.g. "12 strike(s)".
+fn count_before(text: &str, what: &str) -> u64 {
+    let at = text
+        .find(what)
+        .unwrap_or_else(|| panic!("{what:?} not in {text}"));
+    let digits: String = text[..at]
+        .trim_end()
+        .chars()
+        .rev()
+        .take_while(char::is_ascii_digit)
+        .collect();
+    digits.chars().rev().collect::<String>().parse().unwrap()
+}
+
+#[test]
+fn run_interface_plays_the_simulated_foot_and_drives_its_servos() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // The example, with a shorter walk.
+    let text = fs::read_to_string(example("prosthetic-simulated.toml")).unwrap();
+    let short = text.replace("gait = \"steps=4,", "gait = \"steps=2,");
+    assert_ne!(short, text, "the example's walk changed: update this test");
+    let config = dir.path().join("prosthetic.toml");
+    fs::write(&config, short).unwrap();
+    let wav = dir.path().join("interface.wav");
+    let o = run(&[
+        "run",
+        "--interface",
+        s(&config),
+        "--material",
+        "gravel",
+        "--output",
+        &format!("wav:{}", s(&wav)),
+        "--seconds",
+        "20",
+    ]);
+    assert_ok(&o);
+    let out = stdout(&o);
+    // Two steps on each of the four discs.
+    assert_eq!(count_before(&out, "strike(s)"), 8, "{out}");
+    let sent = count_before(&out, "servo frame(s) sent");
+    let received = count_before(&out, "servo frame(s) received");
+    assert!(sent > 20, "{out}");
+    assert!(received > 0 && received <= sent, "{out}");
+    assert_eq!(
+        count_before(&out, "insole frame(s),"),
+        count_before(&out, "insole frame(s) sent")
+    );
+    assert_eq!(count_before(&out, "rejected ("), 0, "{out}");
+    // After the walk the servos are back at rest (1100, 1100 and the reversed 1900 µs).
+    assert!(out.contains("servos at [1100, 1100, 1900] µs"), "{out}");
+    let (spec, samples) = read_wav(&wav);
+    assert_eq!(spec.channels, 4);
+    assert!(samples.iter().any(|v| v.abs() > 1e-4));
+}
+
+#[test]
+fn run_interface_refuses_a_broken_config_clearly() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let text = fs::read_to_string(example("prosthetic-simulated.toml")).unwrap();
+    let config = dir.path().join("broken.toml");
+    // A reversed range on the second servo.
+    let broken = text.replacen("range_us = [1000, 2000]", "range_us = [2000, 1000]", 2);
+    let broken = broken.replacen("range_us = [2000, 1000]", "range_us = [1000, 2000]", 1);
+    fs::write(&config, &broken).unwrap();
+    let o = run(&["run", "--interface", s(&config), "--output", "null"]);
+    let err = assert_error(&o);
+    assert!(err.contains("broken.toml"), "{err}");
+    assert!(err.contains("servo[1].range_us"), "{err}");
+    // A misspelt key, with its line.
+    let line = text
+        .lines()
+        .position(|l| l.starts_with("dead_band_us"))
+        .unwrap()
+        + 1;
+    fs::write(&config, text.replacen("dead_band_us", "deadband_us", 1)).unwrap();
+    let err = assert_error(&run(&[
+        "run",
+        "--interface",
+        s(&config),
+        "--output",
+        "null",
+    ]));
+    assert!(err.contains(&format!("broken.toml:{line}")), "{err}");
+    assert!(err.contains("deadband_us"), "{err}");
+    // A missing file.
+    let err = assert_error(&run(&[
+        "run",
+        "--interface",
+        "/nonexistent/prosthetic.toml",
+        "--output",
+        "null",
+    ]));
+    assert!(err.contains("/nonexistent/prosthetic.toml"), "{err}");
+    // A calibration file that is not one.
+    let cal = dir.path().join("sensors.json");
+    fs::write(&cal, "{\"kind\": \"something else\"}").unwrap();
+    let err = assert_error(&run(&[
+        "run",
+        "--input",
+        "serial:/dev/does-not-exist",
+        "--sensors",
+        s(&cal),
+        "--output",
+        "null",
+    ]));
+    assert!(err.contains("sensors.json"), "{err}");
+}

@@ -17,6 +17,7 @@
 //! | synthesis | [`synthesis`] | a material's modes at the audio rate; the voice with its per-step perturbation |
 //! | compensation | [`compensation`] | a device's response from sine sweeps (or a simulated tile); the iterative equalizer (filter bank or low-delay minimum-phase filter); the lower-limb model, its fit and inverse; the table of users; online adaptation |
 //! | safety | [`safety`] | hard limiter, input watchdog, start/stop fades |
+//! | interface | [`interface`] | the prosthetic-skin interface: insole force to servo positions (range, dead band, rate limit), its configuration file |
 //! | engine | [`engine`] | N channels in real time: lock-free events, no allocation in the callback; offline renders |
 //! | device I/O | [`io`] | CSV replay, serial, OSC in; WAV and audio devices (cpal) out, each behind a feature |
 //!
@@ -120,6 +121,7 @@ pub mod compensation;
 pub mod engine;
 pub mod fit;
 pub mod force;
+pub mod interface;
 pub mod io;
 pub mod material;
 pub mod physical;

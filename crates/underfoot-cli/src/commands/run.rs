@@ -1,6 +1,12 @@
 //! `underfoot run`: the live engine. Force from a replayed track, a generated walk, a
 //! serial port or OSC; vibration to an audio device, a WAV file or nowhere (`null`).
 //!
+//! `--interface prosthetic.toml` replaces `--input` with a prosthetic-skin interface
+//! (`underfoot::io::prosthetic`): its insole frames become force events, one vibration
+//! channel per `[[channel]]`, and its servo frames are written by the same poll below,
+//! never by the audio thread. A simulated interface ends, like a walk, when its walk is
+//! over.
+//!
 //! The input is polled on this thread and crosses to the audio thread over the engine's
 //! lock-free queue. `wav:` and `null` outputs are paced by a thread that renders one
 //! buffer per buffer period, like a device would, so a session can run without one.
@@ -18,9 +24,13 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, bail};
 use clap::Args;
 use underfoot::engine::{self, Engine, TimedEvent};
+use underfoot::force::calibration::SensorCalibration;
 use underfoot::force::gait::{self, GaitConfig};
+use underfoot::force::scale::CountScale;
 use underfoot::force::track::ForceTrack;
+use underfoot::interface::config::InterfaceConfig;
 use underfoot::io::osc::OscSource;
+use underfoot::io::prosthetic::{self, ProstheticHost, SimulatorHandle};
 use underfoot::io::replay::ReplaySource;
 use underfoot::io::serial::{SerialConfig, SerialSource};
 use underfoot::io::wav::{WavFormat, WavSink};
@@ -34,8 +44,17 @@ use crate::output::emit;
 #[derive(Debug, Args)]
 pub struct RunArgs {
     /// Where force comes from: replay:FILE.csv[@SPEED], gait:SPEC, serial:PORT, osc:HOST:PORT.
-    #[arg(long, value_name = "SOURCE")]
-    input: String,
+    #[arg(
+        long,
+        value_name = "SOURCE",
+        required_unless_present_any = ["interface", "list_devices"],
+        conflicts_with = "interface"
+    )]
+    input: Option<String>,
+    /// A prosthetic-skin interface (prosthetic.toml): insole force in, servo targets out,
+    /// one vibration channel per [[channel]]. Replaces --input.
+    #[arg(long, value_name = "FILE.toml")]
+    interface: Option<PathBuf>,
     /// Where vibration goes: audio[:DEVICE], wav:FILE.wav, or null.
     #[arg(long, default_value = "audio", value_name = "SINK")]
     output: String,
@@ -52,7 +71,7 @@ pub struct RunArgs {
     #[arg(long, default_value = "default", value_name = "HOST")]
     host: String,
     /// Stop after this many seconds.
-    #[arg(long, value_name = "SECONDS")]
+    #[arg(long, visible_alias = "seconds", value_name = "SECONDS")]
     duration: Option<f64>,
     /// Serial line speed.
     #[arg(long, default_value_t = 115_200, value_name = "BAUD")]
@@ -65,9 +84,13 @@ pub struct RunArgs {
         value_name = "N[,N...]"
     )]
     layout: Vec<usize>,
-    /// Newtons per ADC count of the serial sensors.
+    /// Newtons per ADC count of the serial sensors (when no --sensors calibration).
     #[arg(long = "newtons-per-count", default_value_t = 0.5, value_name = "N")]
     newtons_per_count: f32,
+    /// Per-sensor calibration of the serial sensors, from `underfoot calibrate sensors`
+    /// (one curve per sensor of the frame, in frame order); replaces --newtons-per-count.
+    #[arg(long, value_name = "FILE.json")]
+    sensors: Option<PathBuf>,
     /// List the audio devices and exit.
     #[arg(long = "list-devices")]
     list_devices: bool,
@@ -101,9 +124,13 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             channels,
         )?));
     }
-    let Input::Source(mut source) = source else {
-        unreachable!("every input is opened above")
-    };
+    let mut boxed: Option<Box<dyn EventSource>> = None;
+    let mut interface: Option<(ProstheticHost, Option<SimulatorHandle>)> = None;
+    match source {
+        Input::Source(s) => boxed = Some(s),
+        Input::Interface(host, sim) => interface = Some((*host, sim)),
+        Input::OscPending(_) => unreachable!("OSC is bound above"),
+    }
     let rate = setup.config.rate;
     let (mut controller, engine) = engine::build(&setup.config, setup.bank, &slots)?;
     let output = Output::start(
@@ -133,6 +160,11 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             stop.store(true, Ordering::SeqCst);
         });
     }
+    let source: &mut dyn EventSource = match (&mut boxed, &mut interface) {
+        (Some(b), _) => b.as_mut(),
+        (None, Some((host, _))) => host,
+        (None, None) => unreachable!("every input is opened above"),
+    };
     let started = Instant::now();
     let deadline = args
         .duration
@@ -171,10 +203,14 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let device_report = output.finish()?;
     let t = controller.telemetry();
     let s = source.stats();
+    let interface_report = match interface {
+        Some((host, sim)) => interface_report(&host, sim)?,
+        None => String::new(),
+    };
     emit(&format!(
         "ran {:.1} s: {} strike(s), peak {:.1} dBFS, {} sample(s) limited, {} non-finite \
          silenced, {} watchdog fade(s)\ninput: {} event(s), {} rejected, {} byte(s) skipped, \
-         {} dropped (queue full)\n{device_report}\n",
+         {} dropped (queue full)\n{interface_report}{device_report}\n",
         started.elapsed().as_secs_f64(),
         t.strikes,
         Decibels::from_amplitude(f64::from(t.peak).max(1e-12)).0,
@@ -191,14 +227,79 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
 enum Input {
     Source(Box<dyn EventSource>),
     OscPending(String),
+    Interface(Box<ProstheticHost>, Option<SimulatorHandle>),
+}
+
+/// The lines the report gets for a prosthetic interface.
+fn interface_report(host: &ProstheticHost, sim: Option<SimulatorHandle>) -> anyhow::Result<String> {
+    let h = host.stats();
+    let mut text = format!(
+        "interface: {} insole frame(s), {} rejected ({} unknown type), {} lost, {} servo \
+         frame(s) sent, {} input timeout(s), {} non-finite force(s) held; servo update delay \
+         max {:.1} ms, mean {:.1} ms\n",
+        h.insole_frames,
+        h.rejected,
+        h.unknown_type,
+        h.lost,
+        h.servo_frames_sent,
+        h.input_timeouts,
+        h.non_finite,
+        h.max_servo_delay.0 * 1e3,
+        h.mean_servo_delay.0 * 1e3,
+    );
+    if h.scaling.above_range + h.scaling.below_range + h.scaling.non_finite > 0 {
+        text.push_str(&format!(
+            "calibration: {} reading(s) above and {} below a curve's range, {} non-finite\n",
+            h.scaling.above_range, h.scaling.below_range, h.scaling.non_finite
+        ));
+    }
+    if let Some(sim) = sim {
+        let r = sim.finish()?;
+        let last = r
+            .positions
+            .last()
+            .map(|(_, p)| {
+                p.iter()
+                    .map(|x| format!("{x:.0}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            })
+            .unwrap_or_default();
+        text.push_str(&format!(
+            "simulated board: {} insole frame(s) sent, {} servo frame(s) received, {} \
+             rejected; servos at [{last}] µs\n",
+            r.insole_frames, r.servo_frames, r.rejected
+        ));
+    }
+    Ok(text)
 }
 
 /// The input, the number of channels it carries (if it says), and whether it ends.
 fn open_input(args: &RunArgs) -> anyhow::Result<(Input, Option<usize>, bool)> {
-    let (kind, rest) = args
+    if let Some(path) = &args.interface {
+        let config = InterfaceConfig::load(path)?;
+        let channels = config.channels.len();
+        let (host, sim) = prosthetic::open(&config)?;
+        let ends = sim.is_some();
+        eprintln!(
+            "underfoot: interface {}: {} insole sensor(s), {} servo(s) at {} Hz, {} vibration \
+             channel(s){}",
+            path.display(),
+            config.sensors.len(),
+            config.servos.len(),
+            config.servo_rate.0,
+            channels,
+            if ends { ", simulated board" } else { "" }
+        );
+        return Ok((Input::Interface(Box::new(host), sim), Some(channels), ends));
+    }
+    let input = args
         .input
+        .as_deref()
+        .context("--input or --interface is needed")?;
+    let (kind, rest) = input
         .split_once(':')
-        .with_context(|| format!("--input {:?}: expected KIND:WHAT", args.input))?;
+        .with_context(|| format!("--input {input:?}: expected KIND:WHAT"))?;
     Ok(match kind {
         "replay" => {
             let (file, speed) = match rest.rsplit_once('@') {
@@ -227,11 +328,17 @@ fn open_input(args: &RunArgs) -> anyhow::Result<(Input, Option<usize>, bool)> {
             )
         }
         "serial" => {
+            let scale = match &args.sensors {
+                Some(path) => CountScale::calibrated(&SensorCalibration::load(path)?),
+                None => CountScale::Uniform {
+                    newtons_per_count: args.newtons_per_count,
+                },
+            };
             let config = SerialConfig {
                 port: rest.to_string(),
                 baud: args.baud,
                 layout: args.layout.clone(),
-                newtons_per_count: args.newtons_per_count,
+                scale,
             };
             let layout = args.layout.len();
             (
@@ -241,10 +348,7 @@ fn open_input(args: &RunArgs) -> anyhow::Result<(Input, Option<usize>, bool)> {
             )
         }
         "osc" => (Input::OscPending(rest.to_string()), None, false),
-        _ => bail!(
-            "--input {:?}: unknown kind {kind:?} (replay, gait, serial, osc)",
-            args.input
-        ),
+        _ => bail!("--input {input:?}: unknown kind {kind:?} (replay, gait, serial, osc)"),
     })
 }
 

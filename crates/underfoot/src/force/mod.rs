@@ -10,6 +10,7 @@
 //! |---|---|
 //! | [`track`] | force tracks and their CSV file format |
 //! | [`calibration`] | raw sensor readings to newtons: fitted per-sensor curves, tare, their files |
+//! | [`scale`] | raw counts to newtons at run time: one factor, or a curve per sensor |
 //! | [`gait`] | the vertical ground-reaction force of walking, for demos and tests |
 //! | [`condition`] | sensor rate to audio rate without zipper noise; total force, centre of pressure |
 //! | [`steps`] | heel-strike detection with hysteresis |
@@ -18,6 +19,7 @@ pub mod calibration;
 pub mod condition;
 pub mod drive;
 pub mod gait;
+pub mod scale;
 pub mod steps;
 pub mod track;
 

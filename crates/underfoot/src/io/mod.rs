@@ -6,6 +6,7 @@
 //! |---|---|---|
 //! | `replay` | `replay` | force from a CSV track, at real-time pace |
 //! | `serial` | `serial` | force from a microcontroller over a serial port (framed binary protocol) |
+//! | `serial` | `prosthetic` | the prosthetic-skin interface: insole frames in, servo frames out; its simulated board |
 //! | `osc` | `osc` | force, steps and material changes from OSC over UDP (a VR engine) |
 //! | `wav` | `wav` | vibration to a WAV file |
 //! | `audio` | `audio` | vibration to an audio device through cpal (ALSA; JACK with `jack`) |
@@ -21,6 +22,8 @@ use crate::engine::Event;
 pub mod audio;
 #[cfg(feature = "osc")]
 pub mod osc;
+#[cfg(feature = "serial")]
+pub mod prosthetic;
 #[cfg(feature = "replay")]
 pub mod replay;
 #[cfg(feature = "serial")]

@@ -13,19 +13,52 @@
 //! 0x00 | COBS(payload) | 0x00
 //! ```
 //!
-//! The payload, before stuffing (all multi-byte fields little-endian):
+//! The payload, before stuffing (all multi-byte fields little-endian). There are two frame
+//! types, told apart by the first byte, with one shared layout so that one decoder and one
+//! CRC routine serve both directions:
 //!
 //! | offset | size | field | value |
 //! |---|---|---|---|
-//! | 0 | 1 | version / type | `0x01`: force frame, protocol version 1 ([`FRAME_VERSION`]) |
-//! | 1 | 2 | sequence number | `u16`, +1 per frame sent, wrapping at 65535 |
-//! | 3 | 1 | sensor count `n` | 1 to 64 ([`MAX_FRAME_SENSORS`]) |
-//! | 4 | 2`n` | sensor values | `n` × `u16` raw ADC counts, in layout order |
+//! | 0 | 1 | type | `0x01`: force frame ([`FORCE_FRAME`], device to host); `0x02`: servo-target frame ([`SERVO_FRAME`], host to device) |
+//! | 1 | 2 | sequence number | `u16`, +1 per frame sent *of this type by this sender*, wrapping at 65535 |
+//! | 3 | 1 | value count `n` | force: 1 to 64 ([`MAX_FRAME_SENSORS`]); servo: 1 to 16 ([`MAX_FRAME_SERVOS`]) |
+//! | 4 | 2`n` | values | `n` × `u16`: force: raw ADC counts, in layout order; servo: target pulse widths in µs, servo 0 first |
 //! | 4 + 2`n` | 2 | checksum | CRC-16/CCITT-FALSE of bytes 0 to 3 + 2`n` |
 //!
-//! So a frame of `n` sensors is `6 + 2n` payload bytes and `9 + 2n` bytes on the wire (COBS
+//! So a frame of `n` values is `6 + 2n` payload bytes and `9 + 2n` bytes on the wire (COBS
 //! adds one byte below 254, plus two delimiters): 17 bytes for heel and toe of both feet,
-//! about 670 frames a second at 115200 baud.
+//! about 670 frames a second at 115200 baud; 15 bytes for three servos, so 100 servo
+//! frames a second take 1.3% of the return direction.
+//!
+//! The type byte was the version byte of protocol version 1, which had only force frames;
+//! a version-1 force frame is unchanged. A sound frame (checksum correct) of a type the
+//! receiver does not know is rejected as one unit, counted ([`FrameError::UnknownType`],
+//! [`DecoderStats::unknown_type`]), and decoding goes on at the next delimiter: a newer
+//! sender does not crash an older receiver, and the count shows the mismatch.
+//!
+//! ## Servo-target frames
+//!
+//! The host sends one servo frame at a fixed rate (the interface configuration's
+//! `servo_rate_hz`, 50 to 100 Hz; standard RC servos take a new pulse every 20 ms, so a
+//! faster rate buys nothing), whether or not a target changed. The host already applies
+//! the range, dead band and rate limit (`interface::servo`), so every target is one to
+//! write to the servo's PWM timer as it is. The firmware must:
+//!
+//! - decode frames with the same COBS and CRC as it encodes force frames, and drop any
+//!   frame whose CRC fails, whose type is not `0x02`, or whose count is not its servo
+//!   count, keeping the previous targets;
+//! - clamp each target to the servo's mechanical limits (a second guard, in case the host
+//!   is misconfigured);
+//! - treat the periodic frame as a heartbeat: with no valid servo frame for a timeout
+//!   (a few frame periods, e.g. 200 ms) return every servo to its rest position slowly,
+//!   so that a crashed host or a pulled cable leaves no pressure on the limb;
+//! - keep sending force frames at its sensor rate regardless of servo traffic (the two
+//!   directions are independent on a full-duplex UART).
+//!
+//! The host does the same in the other direction: with no force frame for
+//! `insole_timeout_s` its servo targets return to rest at their rate limit, and the
+//! engine's watchdog fades the vibration out. Servo frames are never sent from the audio
+//! thread: the input poll thread decodes force frames and writes servo frames.
 //!
 //! ## Why these choices
 //!
@@ -36,11 +69,17 @@
 //!   would run into the following good frame and take it down too. Stuffing costs one byte
 //!   per 254 and a single pass with no buffer on the sender. (Two consecutive delimiters make
 //!   an empty frame, which is ignored.)
-//! - **`u16` raw counts**, scaled on the host by [`SerialConfig::newtons_per_count`]. ADCs of
+//! - **`u16` raw counts**, scaled on the host by [`SerialConfig::scale`] (one factor, or a
+//!   calibration curve per sensor). ADCs of
 //!   these parts give 10 or 12 bits, so a count fits without a 32-bit multiply (slow on a
 //!   16-bit core), at half the bytes of `i32` milli-newtons, and the calibration can change
 //!   without reflashing the firmware. A 24-bit load-cell amplifier has to be shifted down to
 //!   16 bits by the firmware.
+//! - **`u16` pulse widths in µs** for servos: what an RC-servo timer is loaded with, so the
+//!   firmware does no arithmetic, and the whole 500 to 2500 µs range fits at 1 µs
+//!   resolution (finer than a servo resolves).
+//! - **One layout for both types**, so the firmware needs one encoder, one decoder, one
+//!   CRC; only the type byte and the count limit differ.
 //! - **CRC-16/CCITT-FALSE** (polynomial `0x1021`, initial value `0xFFFF`, not reflected, no
 //!   final XOR; check value `0x29B1` for `"123456789"`). It catches every burst of up to 16
 //!   flipped bits and every odd number of flipped bits, which is how serial lines fail.
@@ -49,14 +88,16 @@
 //!   `x = (crc >> 8) ^ byte; x ^= x >> 4; crc = (crc << 8) ^ (x << 12) ^ (x << 5) ^ x`.
 //! - **A 16-bit sequence number**, so that a gap is counted correctly for up to 65535
 //!   missing frames (over a minute at 1 kHz); an 8-bit one would wrap in a quarter second.
+//!   Each type has its own counter, and the decoder tracks gaps per type.
 //!
 //! The sensor count in every frame lets the host check it against the sensors it expects
 //! (the [`SerialConfig::layout`]) instead of misreading a frame from differently wired
-//! firmware.
+//! firmware; the servo count does the same for the firmware.
 //!
 //! # Pieces
 //!
-//! - [`encode_frame`] and [`FrameDecoder`]: the protocol, with no I/O.
+//! - [`encode_frame`], [`encode_servo_frame`] and [`FrameDecoder`]: the protocol, with no
+//!   I/O.
 //! - [`SerialSource`]: a serial port as an [`EventSource`], one [`Event::Force`] per channel
 //!   per frame.
 //! - [`ReferenceSender`]: the firmware's side, in Rust, for tests and simulation.
@@ -68,16 +109,27 @@ use serialport::SerialPort;
 
 use super::{EventSource, IoError, SourceState, SourceStats};
 use crate::engine::Event;
+use crate::force::calibration::ApplyStats;
+use crate::force::scale::CountScale;
 use crate::force::track::{ForceRow, ForceTrack};
 use crate::force::{MAX_SENSORS, SensorReading};
 
-/// The version / type byte of a force frame in protocol version 1.
+/// The type byte of a force frame (device to host) in protocol version 1.
 pub const FRAME_VERSION: u8 = 0x01;
+
+/// The type byte of a force frame: the same as [`FRAME_VERSION`], named for what it is.
+pub const FORCE_FRAME: u8 = FRAME_VERSION;
+
+/// The type byte of a servo-target frame (host to device).
+pub const SERVO_FRAME: u8 = 0x02;
 
 /// The most sensors one frame can carry: eight channels of [`MAX_SENSORS`] sensors.
 pub const MAX_FRAME_SENSORS: usize = 64;
 
-/// Version, sequence number and sensor count.
+/// The most servo targets one servo frame can carry.
+pub const MAX_FRAME_SERVOS: usize = 16;
+
+/// Type, sequence number and value count.
 const HEADER_LEN: usize = 4;
 const CRC_LEN: usize = 2;
 /// The longest valid payload; a longer one is rejected without being stored.
@@ -133,18 +185,91 @@ impl FrameData {
     }
 }
 
+/// The content of one servo-target frame: a sequence number and up to
+/// [`MAX_FRAME_SERVOS`] pulse widths in microseconds, servo `i`'s target at index `i`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ServoFrame {
+    /// The host's servo-frame counter.
+    pub seq: u16,
+    targets: [u16; MAX_FRAME_SERVOS],
+    len: u8,
+}
+
+impl ServoFrame {
+    /// A frame of `targets` (µs), or `None` if there are none or more than
+    /// [`MAX_FRAME_SERVOS`].
+    #[must_use]
+    pub fn new(seq: u16, targets: &[u16]) -> Option<Self> {
+        if targets.is_empty() || targets.len() > MAX_FRAME_SERVOS {
+            return None;
+        }
+        let mut t = [0; MAX_FRAME_SERVOS];
+        t[..targets.len()].copy_from_slice(targets);
+        Some(Self {
+            seq,
+            targets: t,
+            len: targets.len() as u8,
+        })
+    }
+
+    /// The targets in µs, servo 0 first.
+    #[must_use]
+    pub fn targets(&self) -> &[u16] {
+        &self.targets[..usize::from(self.len)]
+    }
+}
+
+/// A decoded frame of either type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Frame {
+    /// Type `0x01`: raw sensor counts, device to host.
+    Force(FrameData),
+    /// Type `0x02`: servo targets, host to device.
+    Servo(ServoFrame),
+}
+
+impl Frame {
+    /// The frame's type byte.
+    #[must_use]
+    pub fn type_byte(&self) -> u8 {
+        match self {
+            Frame::Force(_) => FORCE_FRAME,
+            Frame::Servo(_) => SERVO_FRAME,
+        }
+    }
+
+    /// The sequence number.
+    #[must_use]
+    pub fn seq(&self) -> u16 {
+        match self {
+            Frame::Force(f) => f.seq,
+            Frame::Servo(f) => f.seq,
+        }
+    }
+}
+
 /// Appends `frame` to `out` as it goes on the wire, both delimiters included.
 pub fn encode_frame(frame: &FrameData, out: &mut Vec<u8>) {
+    encode_payload(FORCE_FRAME, frame.seq, frame.counts(), out);
+}
+
+/// Appends a servo-target frame to `out` as it goes on the wire, both delimiters included.
+pub fn encode_servo_frame(frame: &ServoFrame, out: &mut Vec<u8>) {
+    encode_payload(SERVO_FRAME, frame.seq, frame.targets(), out);
+}
+
+/// Both frame types share one layout: type, sequence number, count, `u16` values, CRC.
+fn encode_payload(kind: u8, seq: u16, values: &[u16], out: &mut Vec<u8>) {
     let mut payload = [0u8; MAX_PAYLOAD];
-    let counts = frame.counts();
-    payload[0] = FRAME_VERSION;
-    payload[1..3].copy_from_slice(&frame.seq.to_le_bytes());
-    payload[3] = frame.len;
-    for (i, c) in counts.iter().enumerate() {
+    let values = &values[..values.len().min(MAX_FRAME_SENSORS)];
+    payload[0] = kind;
+    payload[1..3].copy_from_slice(&seq.to_le_bytes());
+    payload[3] = values.len() as u8;
+    for (i, c) in values.iter().enumerate() {
         let at = HEADER_LEN + 2 * i;
         payload[at..at + 2].copy_from_slice(&c.to_le_bytes());
     }
-    let body = HEADER_LEN + 2 * counts.len();
+    let body = HEADER_LEN + 2 * values.len();
     let crc = crc16_ccitt_false(&payload[..body]);
     payload[body..body + CRC_LEN].copy_from_slice(&crc.to_le_bytes());
     out.push(0);
@@ -197,14 +322,15 @@ pub enum FrameError {
         /// The CRC the frame carried.
         received: u16,
     },
-    /// An unknown version / type byte.
-    #[error("unknown frame version {0:#04x}")]
-    Version(u8),
-    /// A sensor count of 0 or more than [`MAX_FRAME_SENSORS`].
-    #[error("sensor count {0} out of range")]
+    /// An unknown type byte (a newer protocol, or a sound frame from something else).
+    #[error("unknown frame type {0:#04x}")]
+    UnknownType(u8),
+    /// A value count of 0 or more than the type allows ([`MAX_FRAME_SENSORS`] sensors,
+    /// [`MAX_FRAME_SERVOS`] servos).
+    #[error("value count {0} out of range")]
     SensorCount(u8),
-    /// The sensor count does not match the frame's length.
-    #[error("{sensors} sensors declared in a {len}-byte payload")]
+    /// The value count does not match the frame's length.
+    #[error("{sensors} values declared in a {len}-byte payload")]
     Length {
         /// The declared count.
         sensors: u8,
@@ -222,10 +348,13 @@ pub struct DecoderStats {
     pub rejected: u64,
     /// Of those, the ones with a bad checksum.
     pub bad_checksums: u64,
+    /// Of those, sound frames (checksum correct) of an unknown type.
+    pub unknown_type: u64,
     /// Bytes of rejected chunks, delimiters not included.
     pub skipped_bytes: u64,
-    /// Frames missing from the sequence numbers of good frames: lost on the line or
-    /// rejected. A sender that restarts its counter shows up as a gap too.
+    /// Frames missing from the sequence numbers of good frames (counted per frame type):
+    /// lost on the line or rejected. A sender that restarts its counter shows up as a gap
+    /// too.
     pub lost: u64,
 }
 
@@ -243,7 +372,8 @@ pub struct FrameDecoder {
     /// Bytes of the current chunk, for [`DecoderStats::skipped_bytes`] if it is rejected.
     chunk_bytes: u64,
     overflow: bool,
-    last_seq: Option<u16>,
+    /// The last sequence number of each frame type (force, servo).
+    last_seq: [Option<u16>; 2],
     stats: DecoderStats,
 }
 
@@ -265,7 +395,7 @@ impl FrameDecoder {
             code: 0,
             chunk_bytes: 0,
             overflow: false,
-            last_seq: None,
+            last_seq: [None; 2],
             stats: DecoderStats::default(),
         }
     }
@@ -273,7 +403,7 @@ impl FrameDecoder {
     /// Takes one byte; at the end of a chunk, returns the frame or why it is not one.
     ///
     /// Every outcome is already counted in [`stats`](Self::stats).
-    pub fn push_byte(&mut self, byte: u8) -> Option<Result<FrameData, FrameError>> {
+    pub fn push_byte(&mut self, byte: u8) -> Option<Result<Frame, FrameError>> {
         if byte == 0 {
             return self.end_chunk();
         }
@@ -295,7 +425,7 @@ impl FrameDecoder {
     }
 
     /// Takes `bytes` and hands each good frame to `on_frame`; errors are only counted.
-    pub fn push(&mut self, bytes: &[u8], mut on_frame: impl FnMut(FrameData)) {
+    pub fn push(&mut self, bytes: &[u8], mut on_frame: impl FnMut(Frame)) {
         for &b in bytes {
             if let Some(Ok(frame)) = self.push_byte(b) {
                 on_frame(frame);
@@ -318,7 +448,7 @@ impl FrameDecoder {
         }
     }
 
-    fn end_chunk(&mut self) -> Option<Result<FrameData, FrameError>> {
+    fn end_chunk(&mut self) -> Option<Result<Frame, FrameError>> {
         let bytes = self.chunk_bytes;
         let result = if bytes == 0 {
             None
@@ -337,16 +467,19 @@ impl FrameDecoder {
         match &result {
             Some(Ok(frame)) => {
                 self.stats.frames += 1;
-                if let Some(last) = self.last_seq {
-                    self.stats.lost += u64::from(frame.seq.wrapping_sub(last).wrapping_sub(1));
+                let slot = &mut self.last_seq[usize::from(matches!(frame, Frame::Servo(_)))];
+                if let Some(last) = *slot {
+                    self.stats.lost += u64::from(frame.seq().wrapping_sub(last).wrapping_sub(1));
                 }
-                self.last_seq = Some(frame.seq);
+                *slot = Some(frame.seq());
             }
             Some(Err(e)) => {
                 self.stats.rejected += 1;
                 self.stats.skipped_bytes += bytes;
-                if matches!(e, FrameError::Checksum { .. }) {
-                    self.stats.bad_checksums += 1;
+                match e {
+                    FrameError::Checksum { .. } => self.stats.bad_checksums += 1,
+                    FrameError::UnknownType(_) => self.stats.unknown_type += 1,
+                    _ => {}
                 }
             }
             None => {}
@@ -355,7 +488,7 @@ impl FrameDecoder {
     }
 }
 
-fn parse_payload(p: &[u8]) -> Result<FrameData, FrameError> {
+fn parse_payload(p: &[u8]) -> Result<Frame, FrameError> {
     if p.len() < HEADER_LEN + CRC_LEN {
         return Err(FrameError::TooShort { len: p.len() });
     }
@@ -365,12 +498,14 @@ fn parse_payload(p: &[u8]) -> Result<FrameData, FrameError> {
     if computed != received {
         return Err(FrameError::Checksum { computed, received });
     }
-    if body[0] != FRAME_VERSION {
-        return Err(FrameError::Version(body[0]));
-    }
+    let most = match body[0] {
+        FORCE_FRAME => MAX_FRAME_SENSORS,
+        SERVO_FRAME => MAX_FRAME_SERVOS,
+        other => return Err(FrameError::UnknownType(other)),
+    };
     let sensors = body[3];
     let n = usize::from(sensors);
-    if n == 0 || n > MAX_FRAME_SENSORS {
+    if n == 0 || n > most {
         return Err(FrameError::SensorCount(sensors));
     }
     if body.len() != HEADER_LEN + 2 * n {
@@ -379,15 +514,27 @@ fn parse_payload(p: &[u8]) -> Result<FrameData, FrameError> {
             len: p.len(),
         });
     }
+    let seq = u16::from_le_bytes([body[1], body[2]]);
+    if body[0] == SERVO_FRAME {
+        let mut targets = [0u16; MAX_FRAME_SERVOS];
+        for (t, b) in targets.iter_mut().zip(body[HEADER_LEN..].chunks_exact(2)) {
+            *t = u16::from_le_bytes([b[0], b[1]]);
+        }
+        return Ok(Frame::Servo(ServoFrame {
+            seq,
+            targets,
+            len: sensors,
+        }));
+    }
     let mut counts = [0u16; MAX_FRAME_SENSORS];
     for (c, b) in counts.iter_mut().zip(body[HEADER_LEN..].chunks_exact(2)) {
         *c = u16::from_le_bytes([b[0], b[1]]);
     }
-    Ok(FrameData {
-        seq: u16::from_le_bytes([body[1], body[2]]),
+    Ok(Frame::Force(FrameData {
+        seq,
         counts,
         len: sensors,
-    })
+    }))
 }
 
 /// Where the force comes from and how its frames map to channels.
@@ -400,8 +547,9 @@ pub struct SerialConfig {
     /// Sensors per channel, in frame order: `[2, 2]` is two channels (feet) of heel and toe,
     /// taking sensors 0-1 and 2-3 of each frame. Every frame must carry exactly the sum.
     pub layout: Vec<usize>,
-    /// Newtons per ADC count, the same for every sensor.
-    pub newtons_per_count: f32,
+    /// Counts to newtons: one factor for every sensor, or a curve per sensor from
+    /// `underfoot calibrate sensors` (one per sensor of the frame, in frame order).
+    pub scale: CountScale,
 }
 
 /// Checks a layout and scale; returns the sensors a frame must carry.
@@ -420,12 +568,7 @@ fn check_config(config: &SerialConfig) -> Result<usize, String> {
             "{sensors} sensors in the layout, a frame carries at most {MAX_FRAME_SENSORS}"
         ));
     }
-    if !(config.newtons_per_count.is_finite() && config.newtons_per_count > 0.0) {
-        return Err(format!(
-            "newtons per count must be positive and finite, not {}",
-            config.newtons_per_count
-        ));
-    }
+    config.scale.check(sensors)?;
     Ok(sensors)
 }
 
@@ -439,8 +582,11 @@ pub struct SerialSource {
     device: String,
     layout: Vec<usize>,
     sensors: usize,
-    newtons_per_count: f32,
+    scale: CountScale,
     decoder: FrameDecoder,
+    /// One frame in newtons, reused so that scaling allocates nothing.
+    newtons: [f32; MAX_FRAME_SENSORS],
+    scaling: ApplyStats,
     /// The port's current read timeout, to skip setting it again on every poll.
     timeout: Duration,
     buf: [u8; 256],
@@ -454,7 +600,7 @@ impl std::fmt::Debug for SerialSource {
         f.debug_struct("SerialSource")
             .field("device", &self.device)
             .field("layout", &self.layout)
-            .field("newtons_per_count", &self.newtons_per_count)
+            .field("scale", &self.scale)
             .field("decoder", &self.decoder.stats())
             .finish_non_exhaustive()
     }
@@ -505,8 +651,10 @@ impl SerialSource {
             device: config.port.clone(),
             layout: config.layout.clone(),
             sensors,
-            newtons_per_count: config.newtons_per_count,
+            scale: config.scale.clone(),
             decoder: FrameDecoder::new(),
+            newtons: [0.0; MAX_FRAME_SENSORS],
+            scaling: ApplyStats::default(),
             timeout,
             buf: [0; 256],
             events: 0,
@@ -519,6 +667,13 @@ impl SerialSource {
     #[must_use]
     pub fn decoder_stats(&self) -> DecoderStats {
         self.decoder.stats()
+    }
+
+    /// What scaling met: readings clamped to a calibration curve's range, non-finite
+    /// results. Always zero for a uniform scale.
+    #[must_use]
+    pub fn scaling_stats(&self) -> ApplyStats {
+        self.scaling
     }
 
     /// Reads once, waiting up to the port's timeout. `None` when nothing came or the port
@@ -552,8 +707,12 @@ impl SerialSource {
     fn feed(&mut self, n: usize, out: &mut dyn FnMut(Event)) {
         for i in 0..n {
             let byte = self.buf[i];
-            if let Some(Ok(frame)) = self.decoder.push_byte(byte) {
-                self.deliver(&frame, out);
+            match self.decoder.push_byte(byte) {
+                Some(Ok(Frame::Force(frame))) => self.deliver(&frame, out),
+                // A servo frame travels host to device; one arriving here is echo or
+                // crossed wiring, and is refused like a mismatched frame.
+                Some(Ok(Frame::Servo(_))) => self.mismatched += 1,
+                _ => {}
             }
         }
     }
@@ -564,16 +723,15 @@ impl SerialSource {
             self.mismatched += 1;
             return;
         }
+        let s = self.scale.apply(counts, &mut self.newtons[..self.sensors]);
+        add_apply_stats(&mut self.scaling, s);
         let mut first = 0;
         for (channel, &n) in self.layout.iter().enumerate() {
-            let mut newtons = [0.0f32; MAX_SENSORS];
-            for (v, &c) in newtons.iter_mut().zip(&counts[first..first + n]) {
-                *v = f32::from(c) * self.newtons_per_count;
-            }
+            let newtons = &self.newtons[first..first + n];
             first += n;
             // The layout was checked at construction, so both always succeed.
             let (Ok(channel), Some(reading)) =
-                (u16::try_from(channel), SensorReading::new(&newtons[..n]))
+                (u16::try_from(channel), SensorReading::new(newtons))
             else {
                 continue;
             };
@@ -581,6 +739,14 @@ impl SerialSource {
             self.events += 1;
         }
     }
+}
+
+/// Adds one frame's scaling counts to a running total.
+pub(crate) fn add_apply_stats(total: &mut ApplyStats, s: ApplyStats) {
+    total.non_finite += s.non_finite;
+    total.above_range += s.above_range;
+    total.below_range += s.below_range;
+    total.missing += s.missing;
 }
 
 impl EventSource for SerialSource {
@@ -798,10 +964,14 @@ mod tests {
         v
     }
 
+    /// The force frames in `bytes` (a servo frame fails the test).
     fn decode_all(bytes: &[u8]) -> (Vec<FrameData>, DecoderStats) {
         let mut d = FrameDecoder::new();
         let mut frames = Vec::new();
-        d.push(bytes, |f| frames.push(f));
+        d.push(bytes, |f| match f {
+            Frame::Force(f) => frames.push(f),
+            Frame::Servo(f) => panic!("unexpected {f:?}"),
+        });
         (frames, d.stats())
     }
 
@@ -926,7 +1096,7 @@ mod tests {
         long.push(0);
         check(long, FrameError::TooLong);
         // Sound frames with a bad header, checksum and all.
-        check(frame_of(&[2, 0, 0, 1, 5, 0]), FrameError::Version(2));
+        check(frame_of(&[3, 0, 0, 1, 5, 0]), FrameError::UnknownType(3));
         check(frame_of(&[1, 0, 0, 0]), FrameError::SensorCount(0));
         check(frame_of(&[1, 0, 0, 65, 0, 0]), FrameError::SensorCount(65));
         check(
@@ -964,6 +1134,65 @@ mod tests {
         assert_eq!(frames.len(), 5);
         // 65535 and 0 between 65534 and 1, then 3, 4 and 5.
         assert_eq!(stats.lost, 5);
+    }
+
+    #[test]
+    fn layout_of_a_servo_frame() {
+        let mut wire = Vec::new();
+        encode_servo_frame(
+            &ServoFrame::new(0x0102, &[1500, 0x0A0B]).unwrap(),
+            &mut wire,
+        );
+        let payload = [0x02, 0x02, 0x01, 0x02, 0xDC, 0x05, 0x0B, 0x0A];
+        let mut want = vec![0];
+        let mut p = payload.to_vec();
+        p.extend(crc16_ccitt_false(&payload).to_le_bytes());
+        cobs_encode(&p, &mut want);
+        want.push(0);
+        assert_eq!(wire, want);
+        assert_eq!(wire.len(), 9 + 2 * 2);
+        assert!(ServoFrame::new(0, &[]).is_none());
+        assert!(ServoFrame::new(0, &[1; MAX_FRAME_SERVOS + 1]).is_none());
+    }
+
+    #[test]
+    fn both_frame_types_share_a_stream_and_unknown_types_are_counted() {
+        let mut stream = Vec::new();
+        for i in 0..5u16 {
+            stream.extend(encoded(i, &[i, 2 * i]));
+            encode_servo_frame(&ServoFrame::new(i * 3, &[1000 + i]).unwrap(), &mut stream);
+            // A sound frame of a type nobody knows, between them.
+            stream.extend(frame_of(&[0x7F, 0, 0, 1, 5, 0]));
+        }
+        let mut d = FrameDecoder::new();
+        let mut got = Vec::new();
+        d.push(&stream, |f| got.push(f));
+        assert_eq!(got.len(), 10);
+        for (i, pair) in got.chunks(2).enumerate() {
+            let i = i as u16;
+            assert_eq!(
+                pair[0],
+                Frame::Force(FrameData::new(i, &[i, 2 * i]).unwrap())
+            );
+            assert_eq!(
+                pair[1],
+                Frame::Servo(ServoFrame::new(i * 3, &[1000 + i]).unwrap())
+            );
+            assert_eq!(pair[1].type_byte(), SERVO_FRAME);
+        }
+        let stats = d.stats();
+        assert_eq!((stats.rejected, stats.unknown_type), (5, 5));
+        // Gaps per type: force frames are consecutive, servo frames skip two each time.
+        assert_eq!(stats.lost, 4 * 2);
+        // A servo frame may carry at most 16 targets.
+        let mut d = FrameDecoder::new();
+        let mut p = vec![SERVO_FRAME, 0, 0, 17];
+        p.extend([1u8; 34]);
+        let results: Vec<_> = frame_of(&p)
+            .iter()
+            .filter_map(|&b| d.push_byte(b))
+            .collect();
+        assert_eq!(results, vec![Err(FrameError::SensorCount(17))]);
     }
 
     #[test]
@@ -1016,7 +1245,9 @@ mod tests {
             port: "/dev/null".into(),
             baud: 115_200,
             layout,
-            newtons_per_count: npc,
+            scale: CountScale::Uniform {
+                newtons_per_count: npc,
+            },
         };
         assert!(check_config(&config(vec![2, 2], 0.1)).is_ok());
         assert!(check_config(&config(vec![], 0.1)).is_err());
@@ -1118,7 +1349,11 @@ mod tests {
             let mut d = FrameDecoder::new();
             let mut got = Vec::new();
             for piece in stream.chunks(chunk) {
-                d.push(piece, |f| got.push((f.seq, f.counts().to_vec())));
+                d.push(piece, |f| {
+                    if let Frame::Force(f) = f {
+                        got.push((f.seq, f.counts().to_vec()));
+                    }
+                });
             }
             // Every intact frame arrives, in order; a damaged frame that happens to pass the
             // CRC (one in 65536) may show up between them.
@@ -1188,6 +1423,76 @@ mod tests {
             s.get_mut().write_all(&wire)
         }
 
+        /// Run-time calibration: each sensor's counts go through its own curve from a
+        /// `SensorCalibration`, clamped to the fitted range, instead of one factor.
+        #[test]
+        fn per_sensor_calibration_scales_each_sensor() {
+            use crate::force::calibration::{CurveModel, SensorCalibration, SensorCurve};
+            let curve = |name: &str, a: f64, b: f64| SensorCurve {
+                name: name.into(),
+                model: CurveModel::Power { a, b, r0: 100.0 },
+                raw_range: [100.0, 4000.0],
+                drift: 0.0,
+            };
+            let calibration = SensorCalibration {
+                sensors: vec![curve("heel", 0.5, 1.0), curve("toe", 0.01, 1.5)],
+            };
+            let (mut master, slave) = TTYPort::pair().expect("pseudo-terminal pair");
+            master.set_timeout(Duration::from_secs(5)).unwrap();
+            let config = SerialConfig {
+                port: slave.name().expect("the slave end has a path"),
+                baud: 115_200,
+                layout: vec![2],
+                scale: CountScale::calibrated(&calibration),
+            };
+            let mut source = SerialSource::open(&config).expect("open the slave end");
+            // A calibration for three sensors does not fit a two-sensor layout.
+            let mut wrong = config.clone();
+            wrong.layout = vec![3];
+            assert!(matches!(
+                SerialSource::open(&wrong),
+                Err(IoError::Unsupported { .. })
+            ));
+            let rows: [[u16; 2]; 4] = [[100, 100], [300, 500], [2100, 1700], [9000, 50]];
+            let mut s = ReferenceSender::new(master);
+            for r in rows {
+                s.send_counts(&r).unwrap();
+            }
+            let mut events = Vec::new();
+            let deadline = Instant::now() + Duration::from_secs(10);
+            while events.len() < rows.len() && Instant::now() < deadline {
+                source
+                    .poll(Duration::from_millis(20), &mut |e| events.push(e))
+                    .unwrap();
+            }
+            assert_eq!(events.len(), rows.len());
+            for (e, r) in events.iter().zip(rows) {
+                let want: Vec<f32> = calibration
+                    .sensors
+                    .iter()
+                    .zip(r)
+                    .map(|(c, raw)| c.force(f64::from(raw)).unwrap().0.0 as f32)
+                    .collect();
+                let Event::Force {
+                    channel: 0,
+                    reading,
+                } = e
+                else {
+                    panic!("{e:?}")
+                };
+                assert_eq!(reading.as_slice(), &want[..]);
+            }
+            // The heel at 300 counts is 0.5 N per count above 100; the last row is
+            // clamped above the heel's range and below the toe's.
+            let Event::Force { reading, .. } = events[1] else {
+                unreachable!()
+            };
+            assert_eq!(reading.as_slice()[0], 100.0);
+            let stats = source.scaling_stats();
+            assert_eq!((stats.above_range, stats.below_range), (1, 1));
+            drop(s);
+        }
+
         #[test]
         fn good_frames_survive_a_bad_line() {
             let (mut master, slave) = TTYPort::pair().expect("pseudo-terminal pair");
@@ -1197,7 +1502,9 @@ mod tests {
                 port: slave_name,
                 baud: 115_200,
                 layout: LAYOUT.to_vec(),
-                newtons_per_count: NPC,
+                scale: CountScale::Uniform {
+                    newtons_per_count: NPC,
+                },
             };
             // Opened by path as a real port would be, 8N1 and raw, next to the pair's own
             // handle (kept open so that the terminal does not hang up between the two).
