@@ -1096,7 +1096,7 @@ fn count_before(text: &str, what: &str) -> u64 {
 fn run_interface_plays_the_simulated_foot_and_drives_its_servos() {
     let dir = tempfile::tempdir().expect("tempdir");
     // The example, with a shorter walk.
-    let text = fs::read_to_string(example("prosthetic-simulated.toml")).unwrap();
+    let text = fs::read_to_string(example("prosthetic.toml")).unwrap();
     let short = text.replace("gait = \"steps=4,", "gait = \"steps=2,");
     assert_ne!(short, text, "the example's walk changed: update this test");
     let config = dir.path().join("prosthetic.toml");
@@ -1136,7 +1136,7 @@ fn run_interface_plays_the_simulated_foot_and_drives_its_servos() {
 #[test]
 fn run_interface_refuses_a_broken_config_clearly() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let text = fs::read_to_string(example("prosthetic-simulated.toml")).unwrap();
+    let text = fs::read_to_string(example("prosthetic.toml")).unwrap();
     let config = dir.path().join("broken.toml");
     // A reversed range on the second servo.
     let broken = text.replacen("range_us = [1000, 2000]", "range_us = [2000, 1000]", 2);
