@@ -60,7 +60,7 @@ pub fn run(args: &ExportArgs) -> anyhow::Result<()> {
         || "built-in library".to_string(),
         |p| p.display().to_string(),
     );
-    if !(args.tolerance_db > 0.0) {
+    if args.tolerance_db.is_nan() || args.tolerance_db <= 0.0 {
         anyhow::bail!("--tolerance-db must be positive, not {}", args.tolerance_db);
     }
     let config = ExportConfig {
