@@ -1,5 +1,5 @@
 //! Second-order-section cascades in `f32`, Q15 and Q31, for firmware: the per-sample
-//! arithmetic of the C reference that [`crate::export`] writes, bit for bit.
+//! arithmetic of the C reference that `underfoot::export` writes, bit for bit.
 //!
 //! Everything here works without `std` and never allocates: sections and states are
 //! slices the caller owns (static arrays on a microcontroller).
@@ -35,8 +35,8 @@
 //! accumulator, before the recursive terms join it. Shifting the exact 32-bit (64-bit)
 //! product sum costs no coefficient precision, where scaling the coefficients would: a
 //! numerator scaled by 1/300 keeps only 7 of its 15 bits in Q15, and the zeros the fit
-//! placed next to its poles move. The exporter picks `m` per section by L∞ scaling (see
-//! [`crate::export`]); the cascade's output is then the model's divided by `2^(Σm)`.
+//! placed next to its poles move. The exporter picks `m` per section (see
+//! `underfoot::export`); the cascade's output is then the model's divided by `2^(Σm)`.
 //!
 //! Every addition saturates (it never wraps: a wrapped accumulator is a full-scale
 //! click on skin), and the output saturates to the data format.
@@ -57,7 +57,8 @@
 //! pole near `z = 1`) the numerator nearly cancels the resonance (Higgins and Munson's
 //! error-spectrum shaping). The weights are integers, so the feedback costs two small
 //! multiplies and no precision; `[0, 0]` turns it off. The exporter picks, per section,
-//! whichever of the two has the smaller noise gain.
+//! whichever of the two has the smaller noise gain. (Feedback can also sustain a small
+//! zero-input limit cycle; the exporter's impulse-response check sees it.)
 //!
 //! # Float
 //!
