@@ -333,3 +333,72 @@ fn header_is_deterministic_and_names_the_library() {
     assert!(ha.contains("gravel") && !ha.contains("\"sand\""));
     assert!(ha.contains(env!("CARGO_PKG_VERSION")));
 }
+
+/// A small library: one hand-built resonant material, enough to cover every part of the
+/// header (float, Q15 and Q31 tables, scaling, the implementation).
+fn small_library() -> underfoot::material::Library {
+    use underfoot::material::{FilterCoefficients, FitRecord, Library, MaterialModel};
+    use underfoot::signal::{Biquad, Sos};
+    use underfoot::units::{Band, Hz};
+    let rate = SampleRate(2000);
+    let band = Band::new(20.0, 900.0);
+    let sos = Sos::new(vec![
+        Biquad {
+            b: [0.1, 0.0, -0.1],
+            a: [1.0, -1.6, 0.81],
+        },
+        Biquad {
+            b: [1.0, -1.2, 0.5],
+            a: [1.0, -1.9, 0.95],
+        },
+    ]);
+    let grid: Vec<f64> = band.log_grid(24).iter().map(|f| f.0).collect();
+    let mag: Vec<f64> = grid
+        .iter()
+        .map(|&f| sos.response(rate.omega(Hz(f))).norm())
+        .collect();
+    let mut library = Library::new();
+    library.upsert(MaterialModel {
+        name: "test-tile".to_string(),
+        sample_rate: rate,
+        band_hz: band,
+        order: sos.order(),
+        filter: FilterCoefficients::from_sos(&sos),
+        fit: FitRecord {
+            grid_hz: grid,
+            measured: mag.clone(),
+            model: mag,
+            nrmse: 0.0,
+            lsd_db: 0.0,
+            method: "hand-built".to_string(),
+            strikes: 1,
+            fit_seconds: 0.0,
+        },
+        sources: Vec::new(),
+        physical: None,
+    });
+    library
+}
+
+#[test]
+fn header_of_a_small_library_matches_its_golden_file() {
+    // To accept a deliberate change: UNDERFOOT_BLESS=1 cargo test -p underfoot --test firmware
+    let golden = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden/small_materials.h");
+    let config = ExportConfig {
+        q15: true,
+        ..ExportConfig::default()
+    };
+    let exported = export::export_library(&small_library(), "small test library", &[], &config)
+        .expect("the small library passes in Q15 and Q31");
+    let header = c::header(&exported);
+    if std::env::var("UNDERFOOT_BLESS").as_deref() == Ok("1") {
+        std::fs::create_dir_all(golden.parent().unwrap()).unwrap();
+        std::fs::write(&golden, &header).unwrap();
+    }
+    let expected =
+        std::fs::read_to_string(&golden).expect("golden header (UNDERFOOT_BLESS=1 writes it)");
+    assert_eq!(
+        header, expected,
+        "the header changed; UNDERFOOT_BLESS=1 to accept"
+    );
+}

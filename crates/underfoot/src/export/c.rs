@@ -49,7 +49,7 @@ pub fn header(export: &Export) -> String {
     for m in &export.materials {
         let f = |c: &super::FormatCheck, on: bool| {
             if on {
-                format!("{:.4}/{:.4}", c.coefficients_db, c.impulse_db)
+                format!("{:.1e}/{:.1e}", c.coefficients_db, c.impulse_db)
             } else {
                 "(not exported)".to_string()
             }
