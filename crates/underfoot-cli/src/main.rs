@@ -41,6 +41,8 @@ enum Command {
     Render(commands::render::RenderArgs),
     /// Run the live engine: force from a replay, serial port or OSC, to a device.
     Run(commands::run::RunArgs),
+    /// A library as a C99 header for firmware: float, Q15/Q31 sections (checked), the loop.
+    Export(commands::export::ExportArgs),
     /// A walk across every built-in material: walk.wav, its spectrogram, the fit table.
     Demo(commands::demo::DemoArgs),
 }
@@ -56,6 +58,7 @@ fn main() -> ExitCode {
         Command::Render(args) => commands::render::run(&args),
         Command::Run(args) => commands::run::run(&args),
         Command::Demo(args) => commands::demo::run(&args),
+        Command::Export(args) => commands::export::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1185,3 +1185,56 @@ fn run_interface_refuses_a_broken_config_clearly() {
     ]));
     assert!(err.contains("sensors.json"), "{err}");
 }
+
+#[test]
+fn export_writes_a_c_header_and_refuses_what_fails_the_check() {
+    let dir = tempfile::tempdir().unwrap();
+    let lib = write_library(dir.path(), &["tile", "board"]);
+    let out = dir.path().join("materials.h");
+    let o = run(&[
+        "export",
+        "--format",
+        "c",
+        "--out",
+        s(&out),
+        "--library",
+        s(&lib),
+        "--materials",
+        "board",
+    ]);
+    assert_ok(&o);
+    let table = stdout(&o);
+    assert!(
+        table.contains("board") && !table.contains("tile"),
+        "{table}"
+    );
+    let header = fs::read_to_string(&out).unwrap();
+    assert!(header.contains("#define UF_MATERIAL_COUNT 1u"));
+    assert!(header.contains("\"board\"") && header.contains("uf_q31_cascade"));
+
+    // An unknown material, and a tolerance no quantised filter meets: status 1, named.
+    let e = assert_error(&run(&[
+        "export",
+        "--out",
+        s(&out),
+        "--library",
+        s(&lib),
+        "--materials",
+        "lava",
+    ]));
+    assert!(e.contains("lava"), "{e}");
+    let e = assert_error(&run(&[
+        "export",
+        "--out",
+        s(&out),
+        "--library",
+        s(&lib),
+        "--fixed",
+        "q15",
+        "--tolerance-db",
+        "1e-9",
+    ]));
+    assert!(e.contains("Q15") && e.contains(" Hz"), "{e}");
+    // The failed export left the earlier header in place.
+    assert_eq!(fs::read_to_string(&out).unwrap(), header);
+}

@@ -20,6 +20,7 @@
 //! | interface | [`interface`] | the prosthetic-skin interface: insole force to servo positions (range, dead band, rate limit), its configuration file |
 //! | engine | [`engine`] | N channels in real time: lock-free events, no allocation in the callback; offline renders |
 //! | device I/O | [`io`] | CSV replay, serial, OSC in; WAV and audio devices (cpal) out, each behind a feature |
+//! | firmware export | [`export`] | a library as a C99 header: float, Q15 and Q31 sections, checked, with a reference per-sample loop |
 //!
 //! Units are types ([`units`]): a [`SampleRate`](units::SampleRate) is not a
 //! [`Hz`](units::Hz), and neither is a bare `f64`.
@@ -27,6 +28,18 @@
 //! Every stage reports bad input through its own error enum; nothing panics on a bad file.
 //! Every file is saved through [`atomic_file`], so a failed save leaves the old file as it
 //! was.
+//!
+//! # Firmware (`no_std`)
+//!
+//! With default features off (`cargo build -p underfoot --no-default-features`) the
+//! crate is `#![no_std]` and keeps what a microcontroller needs to play a material:
+//! [`units`], the seeded noise generator ([`signal::noise`]), second-order-section
+//! cascades in `f32`, Q15 and Q31 ([`signal::fixed`], the same arithmetic as the C
+//! reference that [`export`] writes), and the hard [`safety`] limiter. Math functions go
+//! through [`math`]: `libm` without std, std's own methods with it (so renders made
+//! with std do not change by a bit). No embedded target is installed on the build
+//! machines, so the proof that it builds without std is the host build of the
+//! `#![no_std]` crate, in CI next to its clippy run.
 //!
 //! # Quick start
 //!
@@ -115,18 +128,38 @@
 //! assert_eq!(controller.telemetry().strikes, 1);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
+#![cfg_attr(not(feature = "std"), no_std)]
+
+// The pipeline proper needs the standard library (files, threads, heap, linear algebra);
+// the firmware core below it does not. The gate is here, once, not inside the modules.
+#[cfg(feature = "std")]
 pub mod analysis;
+#[cfg(feature = "std")]
 pub mod atomic_file;
+#[cfg(feature = "std")]
 pub mod compensation;
+#[cfg(feature = "std")]
 pub mod engine;
+#[cfg(feature = "std")]
+pub mod export;
+#[cfg(feature = "std")]
 pub mod fit;
+#[cfg(feature = "std")]
 pub mod force;
+#[cfg(feature = "std")]
 pub mod interface;
+#[cfg(feature = "std")]
 pub mod io;
+#[cfg(feature = "std")]
 pub mod material;
+#[cfg(feature = "std")]
 pub mod physical;
+#[cfg(feature = "std")]
 pub mod recording;
+#[cfg(feature = "std")]
+pub mod synthesis;
+
+pub mod math;
 pub mod safety;
 pub mod signal;
-pub mod synthesis;
 pub mod units;

@@ -3,8 +3,8 @@
 //! A sample rate is not a frequency, a frequency is not an angular frequency, and a
 //! magnitude is not a level in decibels. Each gets a newtype; conversions are explicit.
 
+use core::fmt;
 use serde::{Deserialize, Serialize};
-use std::fmt;
 
 /// Samples per second of a discrete-time signal.
 ///
@@ -36,13 +36,13 @@ impl SampleRate {
     /// The number of whole samples in `t` (rounded to nearest).
     #[must_use]
     pub fn samples_in(self, t: Seconds) -> usize {
-        (t.0 * self.hz()).round().max(0.0) as usize
+        crate::math::round(t.0 * self.hz()).max(0.0) as usize
     }
 
     /// Normalised angular frequency `omega = 2 pi f / fs` in radians per sample.
     #[must_use]
     pub fn omega(self, f: Hz) -> f64 {
-        2.0 * std::f64::consts::PI * f.0 / self.hz()
+        2.0 * core::f64::consts::PI * f.0 / self.hz()
     }
 }
 
@@ -83,13 +83,13 @@ impl Decibels {
     /// The level of an amplitude ratio.
     #[must_use]
     pub fn from_amplitude(ratio: f64) -> Self {
-        Self(20.0 * ratio.log10())
+        Self(20.0 * crate::math::log10(ratio))
     }
 
     /// The amplitude ratio of this level.
     #[must_use]
     pub fn to_amplitude(self) -> f64 {
-        10f64.powf(self.0 / 20.0)
+        crate::math::powf(10.0, self.0 / 20.0)
     }
 }
 
@@ -152,6 +152,7 @@ impl Band {
     }
 
     /// `n` frequencies spaced evenly on a log axis from `lo` to `hi`, both included.
+    #[cfg(feature = "std")]
     #[must_use]
     pub fn log_grid(self, n: usize) -> Vec<Hz> {
         match n {

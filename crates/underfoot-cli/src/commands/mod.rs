@@ -2,6 +2,7 @@ pub mod calibrate;
 pub mod compare;
 pub mod demo;
 pub mod eq_table;
+pub mod export;
 pub mod fit;
 pub mod library;
 pub mod render;

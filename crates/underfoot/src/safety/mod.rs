@@ -45,7 +45,7 @@ impl Limiter {
         Self {
             ceiling: ceiling.to_amplitude() as f32,
             gain: 1.0,
-            release: (1.0 - (-1.0 / (release.0.max(1e-6) * rate.hz())).exp()) as f32,
+            release: (1.0 - crate::math::exp(-1.0 / (release.0.max(1e-6) * rate.hz()))) as f32,
         }
     }
 

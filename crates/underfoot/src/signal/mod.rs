@@ -1,18 +1,30 @@
 //! Signal conditioning: the building blocks that turn a raw recording into a clean strike.
 //!
 //! Each block is independent and tested against its closed-form definition.
+//!
+//! Without the `std` feature only [`noise`] and [`fixed`] remain: what firmware needs.
+#[cfg(feature = "std")]
 pub mod butterworth;
+#[cfg(feature = "std")]
 pub mod filtfilt;
+pub mod fixed;
 pub mod noise;
+#[cfg(feature = "std")]
 pub mod resample;
+#[cfg(feature = "std")]
 pub mod savgol;
+#[cfg(feature = "std")]
 pub mod sos;
+#[cfg(feature = "std")]
 pub mod spectrum;
+#[cfg(feature = "std")]
 pub mod wavelet;
 
+#[cfg(feature = "std")]
 pub use sos::{Biquad, Sos};
 
 /// What can be wrong with the parameters or input of a conditioning block.
+#[cfg(feature = "std")]
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum SignalError {

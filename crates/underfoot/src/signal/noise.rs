@@ -41,7 +41,8 @@ impl SplitMix64 {
     pub fn normal(&mut self) -> f64 {
         let u1 = 1.0 - self.uniform();
         let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        use crate::math::{cos, ln, sqrt};
+        sqrt(-2.0 * ln(u1)) * cos(core::f64::consts::TAU * u2)
     }
 }
 

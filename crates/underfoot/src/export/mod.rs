@@ -1,0 +1,882 @@
+//! Firmware export: a library's materials as second-order sections in `f32`, Q15 and Q31,
+//! checked, and written as one C99 header with a portable reference of the per-sample
+//! loop ([`c::header`]).
+//!
+//! # Rate
+//!
+//! The filters are exported at each model's own rate (2 kHz for the built-ins), the rate
+//! they were fitted at: no re-design, so the exported float filter *is* the model. A
+//! device that plays at a higher rate upsamples the filter's output (or the drive), as the
+//! acquisition board of the paper samples at the analysis rate anyway. At 2 kHz the
+//! lowest resonances (20 Hz) sit at `θ = 0.063` rad, 24 times further from `z = 1` than
+//! at 48 kHz, which is what lets a 16-bit direct form hold them at all.
+//!
+//! # Design of the fixed-point cascade
+//!
+//! * **Ordering and pairing**: the fit's own sections, in its order: each pairs its
+//!   poles with the zeros the fit placed next to them, which keeps every section's gain
+//!   moderate.
+//! * **Decay limit**: poles are first pulled in radially so that none rings longer
+//!   than [`ExportConfig::longest_decay`] (0.5 s), the voice's own rule: several fits
+//!   park a pole within `1e-7` of the unit circle, which no 16- or 32-bit direct form
+//!   keeps inside it, and an actuator on skin must not ring for seconds anyway. The
+//!   float reference of the check is this decay-limited filter.
+//! * **Scaling**: by powers of two, for the drive the filter actually gets (a step's
+//!   force pulse: impulse-like). Section `i` shifts its numerator sum right by the
+//!   smallest `m_i` that keeps the peak of the impulse response from the cascade input to
+//!   its output, `2^-(m_1+...+m_i) max_n |h_{1..i}\[n\]|`, at or below 1/2 (a factor 2 of
+//!   headroom). L∞ scaling in frequency (no full-scale sinusoid ever overflows) was
+//!   measured too: it costs 20-40 dB of signal level on the resonant built-ins (dirt:
+//!   a gain of 128 instead of 1), which buries the band edges in Q15 rounding noise. A
+//!   sustained full-scale sinusoid at a resonance saturates instead, and saturation
+//!   never wraps. The cascade's output is the model's times `2^-M`, `M = Σ m_i`;
+//!   [`Exported::gain`] is `2^M`.
+//! * **Quantisation**: coefficients rounded to nearest in Q(k).(15-k) or Q(k).(31-k)
+//!   with the smallest post-shift `k` that holds them (see [`crate::signal::fixed`]).
+//! * **Q15 refinement**: rounding each coefficient to nearest is not the best 16-bit
+//!   cascade; a coordinate descent over steps of ±1 and ±2 of one coefficient at a time
+//!   keeps whatever lowers the worst deviation of the coefficients' response over the
+//!   band (grass: 1.69 to 0.98 dB). Q31 needs none.
+//! * **Error feedback**: per section, `[0, 0]` or `[round(-a1), round(-a2)]`, whichever
+//!   gives the smaller output noise power (the error through
+//!   `(1 - f_1 z^{-1} - f_2 z^{-2}) / A_i(z)` and every later section).
+//!
+//! # The check
+//!
+//! A format passes when, for the quantised cascade:
+//!
+//! 1. every pole is strictly inside the unit circle and keeps at least half of the float
+//!    filter's distance to it (`1 - |p|`), and
+//! 2. its response, times the gain, is within [`ExportConfig::tolerance`] (0.5 dB) of the
+//!    float (f64) model at [`ExportConfig::grid_points`] log-spaced frequencies over the
+//!    band, twice: from the quantised coefficients, and from the DFT of the impulse
+//!    response the fixed-point loop actually computes (full-scale impulse, until it has
+//!    decayed by 120 dB), which adds the data path's rounding to the coefficients'.
+//!
+//! The exporter refuses a library in which any material fails for a format it was asked
+//! for, naming the material, the format and the worst frequency.
+//!
+//! # Figures and the Q15 policy
+//!
+//! On the built-in library (2 kHz, 3 to 8 sections each), Q31 comes within 5e-5 dB of
+//! the float model on every material, with pole margins unchanged to 1e-5; `f32` within
+//! 2e-3 dB. Q15 meets 0.5 dB on four (glass, ice, metal, wood: 0.18 to 0.43 dB) and
+//! not on the other seven (gravel 0.52, snow 0.50, sand 0.73, water 0.94, grass 0.98,
+//! hard 2.9, dirt 6.0 dB at 122 Hz): with 16-bit data the band's quiet regions, far
+//! below its resonances, are close to the data path's rounding noise. Q15 is therefore exported only on request ([`ExportConfig::q15`]) and then
+//! checked like the others; Q31 is the default fixed-point format (a 16-bit
+//! microcontroller runs it with 32x32-bit multiplies, which its compiler provides).
+//! `underfoot export` prints these figures per material.
+
+pub mod c;
+
+use std::path::Path;
+
+use num_complex::Complex64;
+
+use crate::atomic_file::{AtomicWriteError, write_atomic};
+use crate::material::{Library, MaterialModel};
+use crate::signal::fixed::{
+    F32Section, F32State, Q15Section, Q15State, Q31Section, Q31State, f32_cascade, q15_cascade,
+    q31_cascade,
+};
+use crate::signal::{Biquad, Sos};
+use crate::units::{Band, Decibels, Hz, SampleRate, Seconds};
+
+/// What can go wrong exporting a library.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ExportError {
+    /// A material asked for is not in the library.
+    #[error("material {name:?} is not in the library (it has: {available})")]
+    UnknownMaterial {
+        /// The name asked for.
+        name: String,
+        /// The names it has, comma-separated.
+        available: String,
+    },
+    /// Nothing to export.
+    #[error("the library has no materials to export")]
+    Empty,
+    /// A model's filter cannot be run (malformed rows, unstable, or its band does not fit).
+    #[error("material {name:?}: {reason}")]
+    BadModel {
+        /// The material.
+        name: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A fixed-point format fails the check.
+    #[error(
+        "material {name:?}: the {format} filter fails the check: {reason} \
+         (worst deviation {worst_db:.3} dB at {worst_hz:.1} Hz, tolerance {tolerance_db} dB)"
+    )]
+    CheckFailed {
+        /// The material.
+        name: String,
+        /// `Q15`, `Q31` or `f32`.
+        format: &'static str,
+        /// What failed.
+        reason: String,
+        /// The worst deviation over the band, in dB.
+        worst_db: f64,
+        /// Where it is.
+        worst_hz: f64,
+        /// The tolerance.
+        tolerance_db: f64,
+    },
+    /// The header could not be written.
+    #[error("writing the header: {0}")]
+    Write(#[from] AtomicWriteError),
+}
+
+/// How to export.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExportConfig {
+    /// Largest deviation from the float response allowed over the band (default 0.5 dB).
+    pub tolerance: Decibels,
+    /// Log-spaced frequencies over the band the check uses (default 256).
+    pub grid_points: usize,
+    /// The smallest fraction of the float filter's pole margin `1 - |p|` a quantised
+    /// filter must keep (default 0.5).
+    pub margin_fraction: f64,
+    /// No pole rings longer than this (time to decay by `e`; default 0.5 s, the
+    /// voice's [`longest_decay`](crate::synthesis::VoiceConfig::longest_decay)).
+    pub longest_decay: Seconds,
+    /// Export (and enforce the check for) Q15 (default false: see the module doc).
+    pub q15: bool,
+    /// Export (and enforce the check for) Q31 (default true).
+    pub q31: bool,
+}
+
+impl Default for ExportConfig {
+    fn default() -> Self {
+        Self {
+            tolerance: Decibels(0.5),
+            grid_points: 256,
+            margin_fraction: 0.5,
+            longest_decay: Seconds(0.5),
+            q15: false,
+            q31: true,
+        }
+    }
+}
+
+/// How close one format comes to the float model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FormatCheck {
+    /// Worst deviation over the band of the quantised coefficients' response, in dB.
+    pub coefficients_db: f64,
+    /// Worst deviation over the band of the DFT of the computed impulse response, in dB.
+    pub impulse_db: f64,
+    /// Where the larger of the two is.
+    pub worst_hz: Hz,
+    /// `1 - |p|` of the pole nearest the unit circle.
+    pub pole_margin: f64,
+}
+
+impl FormatCheck {
+    /// The larger of the two deviations.
+    #[must_use]
+    pub fn worst_db(&self) -> f64 {
+        self.coefficients_db.max(self.impulse_db)
+    }
+}
+
+/// One material ready for firmware.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Exported {
+    /// Its name in the library.
+    pub name: String,
+    /// The rate the filter runs at.
+    pub rate: SampleRate,
+    /// The band it was fitted in.
+    pub band: Band,
+    /// The model's output is `gain` times the cascade's (`2^M`, see the module doc).
+    pub gain: f64,
+    /// The scaled float sections (the reference every format is checked against).
+    pub sections: Vec<Biquad>,
+    /// In `f32`.
+    pub f32: Vec<F32Section>,
+    /// In Q15.
+    pub q15: Vec<Q15Section>,
+    /// In Q31.
+    pub q31: Vec<Q31Section>,
+    /// `1 - |p|` of the float model's pole nearest the unit circle.
+    pub pole_margin: f64,
+    /// The `f32` cascade against the model.
+    pub f32_check: FormatCheck,
+    /// The Q15 cascade against the model.
+    pub q15_check: FormatCheck,
+    /// The Q31 cascade against the model.
+    pub q31_check: FormatCheck,
+    /// Length of the impulse responses the check computed (until a 120 dB decay).
+    pub impulse_samples: usize,
+    /// Whether the Q15 sections are exported (asked for, and so checked).
+    pub with_q15: bool,
+    /// Whether the Q31 sections are exported.
+    pub with_q31: bool,
+}
+
+/// A library ready for firmware: what [`c::header`] writes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Export {
+    /// Where the library came from (a path, or `built-in`).
+    pub origin: String,
+    /// SHA-256 of the library's JSON, lower-case hex: its identity.
+    pub library_sha256: String,
+    /// The materials, in library order.
+    pub materials: Vec<Exported>,
+}
+
+/// Prepares and checks `names` (all materials when empty) of `library`.
+///
+/// # Errors
+/// [`ExportError::UnknownMaterial`], [`ExportError::Empty`], and the errors of
+/// [`prepare`] for the first material that fails.
+pub fn export_library(
+    library: &Library,
+    origin: &str,
+    names: &[String],
+    config: &ExportConfig,
+) -> Result<Export, ExportError> {
+    let models: Vec<&MaterialModel> = if names.is_empty() {
+        library.materials.iter().collect()
+    } else {
+        names
+            .iter()
+            .map(|n| {
+                library
+                    .materials
+                    .iter()
+                    .find(|m| &m.name == n)
+                    .ok_or_else(|| ExportError::UnknownMaterial {
+                        name: n.clone(),
+                        available: library.names().join(", "),
+                    })
+            })
+            .collect::<Result<_, _>>()?
+    };
+    if models.is_empty() {
+        return Err(ExportError::Empty);
+    }
+    let materials = models
+        .into_iter()
+        .map(|m| prepare(m, config))
+        .collect::<Result<_, _>>()?;
+    Ok(Export {
+        origin: origin.to_string(),
+        library_sha256: sha256_hex(library.to_json().as_bytes()),
+        materials,
+    })
+}
+
+/// Writes `text` to `path` atomically (temporary file and rename).
+///
+/// # Errors
+/// [`ExportError::Write`].
+pub fn write(path: &Path, text: &str) -> Result<(), ExportError> {
+    Ok(write_atomic(path, text.as_bytes())?)
+}
+
+fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::{Digest, Sha256};
+    Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// Quantises one model in every format and checks each (see the module doc).
+///
+/// # Errors
+/// [`ExportError::BadModel`] for a filter that cannot run, [`ExportError::CheckFailed`]
+/// for a format that fails the check.
+pub fn prepare(model: &MaterialModel, config: &ExportConfig) -> Result<Exported, ExportError> {
+    let bad = |reason: String| ExportError::BadModel {
+        name: model.name.clone(),
+        reason,
+    };
+    let sos = model
+        .sos()
+        .ok_or_else(|| bad("a section has a0 = 0 or a non-finite coefficient".into()))?;
+    if sos.sections.is_empty() {
+        return Err(bad("the filter has no sections".into()));
+    }
+    if !sos.is_stable() {
+        return Err(bad("the filter is unstable".into()));
+    }
+    if !model.band_hz.fits(model.sample_rate) {
+        return Err(bad(format!(
+            "band {} does not fit rate {}",
+            model.band_hz, model.sample_rate
+        )));
+    }
+    if !(config.grid_points >= 2
+        && config.tolerance.0 > 0.0
+        && config.margin_fraction >= 0.0
+        && config.longest_decay.0 > 0.0)
+    {
+        return Err(bad(format!("invalid export settings {config:?}")));
+    }
+
+    let sos = limit_decay(&sos, model.sample_rate, config.longest_decay);
+    let shifts = peak_shifts(&sos).ok_or_else(|| bad("its gain is not finite".into()))?;
+    let total: u32 = shifts.iter().map(|&m| u32::from(m)).sum();
+    let gain = 2f64.powi(total as i32);
+    let scaled: Vec<Biquad> = sos
+        .sections
+        .iter()
+        .zip(&shifts)
+        .map(|(s, &m)| Biquad {
+            b: s.b.map(|c| c / 2f64.powi(i32::from(m))),
+            a: s.a,
+        })
+        .collect();
+    let feedback = error_feedback(&scaled);
+
+    let quantise_fail = |format: &'static str| ExportError::CheckFailed {
+        name: model.name.clone(),
+        format,
+        reason: "a coefficient does not fit the format".into(),
+        worst_db: f64::INFINITY,
+        worst_hz: f64::NAN,
+        tolerance_db: config.tolerance.0,
+    };
+    let q15 = sos
+        .sections
+        .iter()
+        .zip(&shifts)
+        .zip(&feedback)
+        .map(|((s, &m), &f)| Q15Section::quantize(s.b, [s.a[1], s.a[2]], f, m))
+        .collect::<Option<Vec<_>>>()
+        .ok_or_else(|| quantise_fail("Q15"))?;
+    let q15 = refine_q15(q15, &Sos::new(scaled.clone()), model, config);
+    let q31 = sos
+        .sections
+        .iter()
+        .zip(&shifts)
+        .zip(&feedback)
+        .map(|((s, &m), &f)| Q31Section::quantize(s.b, [s.a[1], s.a[2]], f, m))
+        .collect::<Option<Vec<_>>>()
+        .ok_or_else(|| quantise_fail("Q31"))?;
+    let f32: Vec<F32Section> = scaled
+        .iter()
+        .map(|s| F32Section::new(s.b, [s.a[1], s.a[2]]))
+        .collect();
+
+    let reference = Sos::new(scaled.clone());
+    let pole_margin = margin(&reference);
+    let checker = Checker::new(model, &reference, config);
+    let represented = |pairs: Vec<([f64; 3], [f64; 2])>| {
+        Sos::new(
+            pairs
+                .into_iter()
+                .map(|(b, a)| Biquad {
+                    b,
+                    a: [1.0, a[0], a[1]],
+                })
+                .collect(),
+        )
+    };
+    let n = impulse_length(&reference);
+
+    let q15_check = {
+        let coeffs = represented(q15.iter().map(Q15Section::coefficients).collect());
+        let mut states = vec![Q15State::default(); q15.len()];
+        let ir: Vec<f64> = (0..n)
+            .map(|i| {
+                let x = if i == 0 { i16::MAX } else { 0 };
+                f64::from(q15_cascade(&q15, &mut states, x)) / f64::from(i16::MAX)
+            })
+            .collect();
+        match checker.check(&model.name, "Q15", &coeffs, &ir) {
+            (_, Some(e)) if config.q15 => return Err(e),
+            (check, _) => check,
+        }
+    };
+    let q31_check = {
+        let coeffs = represented(q31.iter().map(Q31Section::coefficients).collect());
+        let mut states = vec![Q31State::default(); q31.len()];
+        let ir: Vec<f64> = (0..n)
+            .map(|i| {
+                let x = if i == 0 { i32::MAX } else { 0 };
+                f64::from(q31_cascade(&q31, &mut states, x)) / f64::from(i32::MAX)
+            })
+            .collect();
+        match checker.check(&model.name, "Q31", &coeffs, &ir) {
+            (_, Some(e)) if config.q31 => return Err(e),
+            (check, _) => check,
+        }
+    };
+    let f32_check = {
+        let coeffs = represented(
+            f32.iter()
+                .map(|s| (s.b.map(f64::from), [f64::from(s.a[0]), f64::from(s.a[1])]))
+                .collect(),
+        );
+        let mut states = vec![F32State::default(); f32.len()];
+        let ir: Vec<f64> = (0..n)
+            .map(|i| {
+                f64::from(f32_cascade(
+                    &f32,
+                    &mut states,
+                    if i == 0 { 1.0 } else { 0.0 },
+                ))
+            })
+            .collect();
+        match checker.check(&model.name, "f32", &coeffs, &ir) {
+            (_, Some(e)) => return Err(e),
+            (check, None) => check,
+        }
+    };
+
+    Ok(Exported {
+        name: model.name.clone(),
+        rate: model.sample_rate,
+        band: model.band_hz,
+        gain,
+        sections: scaled,
+        f32,
+        q15,
+        q31,
+        pole_margin,
+        f32_check,
+        q15_check,
+        q31_check,
+        impulse_samples: n,
+        with_q15: config.q15,
+        with_q31: config.q31,
+    })
+}
+
+/// Rounding each Q15 coefficient to nearest is not the best 16-bit cascade: a step or
+/// two of one coefficient can undo another's error. Coordinate descent over steps of
+/// -2..=2, one coefficient at a time, keeping a change only when it lowers the worst
+/// deviation of the coefficients' response over the band (and keeps the section's
+/// poles within the unit circle); a few passes, deterministic.
+fn refine_q15(
+    mut sections: Vec<Q15Section>,
+    reference: &Sos,
+    model: &MaterialModel,
+    config: &ExportConfig,
+) -> Vec<Q15Section> {
+    let omegas: Vec<f64> = model
+        .band_hz
+        .log_grid(config.grid_points)
+        .iter()
+        .map(|&f| model.sample_rate.omega(f))
+        .collect();
+    let target: Vec<f64> = omegas
+        .iter()
+        .map(|&w| reference.response(w).norm())
+        .collect();
+    let response = |s: &Q15Section| -> Option<Vec<Complex64>> {
+        let (b, a) = s.coefficients();
+        let q = Biquad {
+            b,
+            a: [1.0, a[0], a[1]],
+        };
+        q.is_stable()
+            .then(|| omegas.iter().map(|&w| q.response(w)).collect())
+    };
+    let Some(mut responses) = sections.iter().map(response).collect::<Option<Vec<_>>>() else {
+        return sections;
+    };
+    let worst = |responses: &[Vec<Complex64>]| {
+        (0..omegas.len())
+            .map(|g| {
+                let h: f64 = responses.iter().map(|r| r[g].norm()).product();
+                (20.0 * (h / target[g]).log10()).abs()
+            })
+            .fold(0.0, f64::max)
+    };
+    let mut best = worst(&responses);
+    for _ in 0..4 {
+        let mut improved = false;
+        for i in 0..sections.len() {
+            for j in 0..5 {
+                for delta in [-2i16, -1, 1, 2] {
+                    let mut trial = sections[i];
+                    let c = if j < 3 {
+                        &mut trial.b[j]
+                    } else {
+                        &mut trial.a[j - 3]
+                    };
+                    let Some(v) = c.checked_add(delta) else {
+                        continue;
+                    };
+                    *c = v;
+                    let Some(r) = response(&trial) else { continue };
+                    let saved = std::mem::replace(&mut responses[i], r);
+                    let w = worst(&responses);
+                    if w < best {
+                        best = w;
+                        sections[i] = trial;
+                        improved = true;
+                    } else {
+                        responses[i] = saved;
+                    }
+                }
+            }
+        }
+        if !improved {
+            break;
+        }
+    }
+    sections
+}
+
+/// The cascade with every pole pulled in radially to decay within `longest` (the
+/// voice's rule, [`crate::synthesis::ModalFilter::limit_decay`]); numerators unchanged.
+fn limit_decay(sos: &Sos, rate: SampleRate, longest: Seconds) -> Sos {
+    let max_radius = (-1.0 / (rate.hz() * longest.0)).exp();
+    Sos::new(
+        sos.sections
+            .iter()
+            .map(|s| {
+                if s.poles().iter().all(|p| p.norm() <= max_radius) {
+                    return *s;
+                }
+                let [p, q] = s.poles().map(|p| {
+                    let r = p.norm();
+                    if r > max_radius {
+                        p * (max_radius / r)
+                    } else {
+                        p
+                    }
+                });
+                Biquad {
+                    b: s.b,
+                    a: [1.0, -(p + q).re, (p * q).re],
+                }
+            })
+            .collect(),
+    )
+}
+
+/// Samples of impulse response the check computes: until the slowest pole has decayed
+/// by 120 dB, within `[4096, 2^17]`.
+fn impulse_length(sos: &Sos) -> usize {
+    let r = sos.poles().iter().map(|p| p.norm()).fold(0.0, f64::max);
+    let n = if r > 0.0 && r < 1.0 {
+        (1e-6f64.ln() / r.ln()).ceil()
+    } else {
+        0.0
+    };
+    (n as usize).clamp(4096, 1 << 17)
+}
+
+fn margin(sos: &Sos) -> f64 {
+    1.0 - sos.poles().iter().map(|p| p.norm()).fold(0.0, f64::max)
+}
+
+/// The scaling shifts: see the module doc.
+fn peak_shifts(sos: &Sos) -> Option<Vec<u8>> {
+    let n = impulse_length(sos);
+    let mut signal = vec![0.0; n];
+    signal[0] = 1.0;
+    let mut total = 0i32;
+    let mut shifts = Vec::with_capacity(sos.sections.len());
+    for s in &sos.sections {
+        Sos::new(vec![*s]).filter_in_place(&mut signal);
+        let peak = signal.iter().fold(0.0f64, |p, v| p.max(v.abs()));
+        if !peak.is_finite() {
+            return None;
+        }
+        // The smallest m with peak 2^-(total + m) <= 1/2 (a factor 2 of headroom for
+        // drives that are not quite impulses); a section that attenuates does not shift
+        // left (that would amplify its rounding instead of saving headroom).
+        let needed = (2.0 * peak).log2().ceil() as i32 - total;
+        let m = needed.clamp(0, 24);
+        total += m;
+        shifts.push(m as u8);
+    }
+    Some(shifts)
+}
+
+/// Per section, the error-feedback weights with the smaller output noise power.
+fn error_feedback(sections: &[Biquad]) -> Vec<[i8; 2]> {
+    const GRID: usize = 2048;
+    let omegas: Vec<f64> = (0..GRID)
+        .map(|i| std::f64::consts::PI * (i as f64 + 0.5) / GRID as f64)
+        .collect();
+    (0..sections.len())
+        .map(|i| {
+            let s = &sections[i];
+            let shaped = [
+                (-s.a[1]).round().clamp(-2.0, 2.0) as i8,
+                (-s.a[2]).round().clamp(-2.0, 2.0) as i8,
+            ];
+            let power = |f: [i8; 2]| {
+                let noise = Biquad {
+                    b: [1.0, -f64::from(f[0]), -f64::from(f[1])],
+                    a: s.a,
+                };
+                omegas
+                    .iter()
+                    .map(|&w| {
+                        let later = sections[i + 1..]
+                            .iter()
+                            .fold(noise.response(w), |h, t| h * t.response(w));
+                        later.norm_sqr()
+                    })
+                    .sum::<f64>()
+            };
+            if power(shaped) < power([0, 0]) {
+                shaped
+            } else {
+                [0, 0]
+            }
+        })
+        .collect()
+}
+
+/// The band grid and the float reference on it.
+struct Checker {
+    rate: SampleRate,
+    grid: Vec<Hz>,
+    reference: Vec<f64>,
+    reference_margin: f64,
+    tolerance: f64,
+    margin_fraction: f64,
+}
+
+impl Checker {
+    fn new(model: &MaterialModel, reference: &Sos, config: &ExportConfig) -> Self {
+        let grid = model.band_hz.log_grid(config.grid_points);
+        let rate = model.sample_rate;
+        let reference_values = grid
+            .iter()
+            .map(|&f| reference.response(rate.omega(f)).norm())
+            .collect();
+        Self {
+            rate,
+            grid,
+            reference: reference_values,
+            reference_margin: margin(reference),
+            tolerance: config.tolerance.0,
+            margin_fraction: config.margin_fraction,
+        }
+    }
+
+    /// Worst deviation (dB) and where, of magnitudes on the grid.
+    fn worst(&self, magnitudes: impl Iterator<Item = f64>) -> (f64, Hz) {
+        magnitudes
+            .zip(&self.reference)
+            .zip(&self.grid)
+            .map(|((m, r), &f)| {
+                let d = (20.0 * (m / r).log10()).abs();
+                (if d.is_nan() { f64::INFINITY } else { d }, f)
+            })
+            .fold((0.0, Hz(f64::NAN)), |a, b| if b.0 > a.0 { b } else { a })
+    }
+
+    fn check(
+        &self,
+        name: &str,
+        format: &'static str,
+        coefficients: &Sos,
+        impulse: &[f64],
+    ) -> (FormatCheck, Option<ExportError>) {
+        let (coefficients_db, coef_hz) = self.worst(
+            self.grid
+                .iter()
+                .map(|&f| coefficients.response(self.rate.omega(f)).norm()),
+        );
+        let (impulse_db, ir_hz) = self.worst(
+            self.grid
+                .iter()
+                .map(|&f| dft(impulse, self.rate.omega(f)).norm()),
+        );
+        let worst_hz = if impulse_db > coefficients_db {
+            ir_hz
+        } else {
+            coef_hz
+        };
+        let check = FormatCheck {
+            coefficients_db,
+            impulse_db,
+            worst_hz,
+            pole_margin: margin(coefficients),
+        };
+        let fail = |reason: String| ExportError::CheckFailed {
+            name: name.to_string(),
+            format,
+            reason,
+            worst_db: check.worst_db(),
+            worst_hz: worst_hz.0,
+            tolerance_db: self.tolerance,
+        };
+        if !(check.pole_margin > 0.0
+            && check.pole_margin >= self.margin_fraction * self.reference_margin)
+        {
+            let e = fail(format!(
+                "a pole moved to {:.6} from the unit circle (the float filter's is {:.6})",
+                check.pole_margin, self.reference_margin
+            ));
+            return (check, Some(e));
+        }
+        if check.worst_db().is_nan() || check.worst_db() > self.tolerance {
+            let e = fail("its response is too far from the float filter's".into());
+            return (check, Some(e));
+        }
+        (check, None)
+    }
+}
+
+/// The DTFT of a finite sequence at `omega`.
+#[must_use]
+pub fn dft(x: &[f64], omega: f64) -> Complex64 {
+    // A rotating phasor, renormalised now and then, instead of a sin/cos per sample.
+    let step = Complex64::from_polar(1.0, -omega);
+    let mut phasor = Complex64::new(1.0, 0.0);
+    let mut sum = Complex64::new(0.0, 0.0);
+    for (n, &v) in x.iter().enumerate() {
+        sum += phasor * v;
+        phasor *= step;
+        if n % 1024 == 1023 {
+            phasor = Complex64::from_polar(1.0, -omega * (n + 1) as f64);
+        }
+    }
+    sum
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::builtin::builtin;
+
+    #[test]
+    fn q31_of_every_builtin_passes_and_gain_undoes_the_scaling() {
+        let e = export_library(builtin(), "built-in", &[], &ExportConfig::default()).unwrap();
+        assert_eq!(e.materials.len(), builtin().materials.len());
+        for m in &e.materials {
+            assert!(m.q31_check.worst_db() <= 0.5 && m.q31_check.pole_margin > 0.0);
+            // The scaled sections times the gain are the (decay-limited) model.
+            let model = builtin().get(&m.name).unwrap();
+            let f = model.band_hz.log_grid(3)[1];
+            let w = model.sample_rate.omega(f);
+            let limited = limit_decay(&model.sos().unwrap(), model.sample_rate, Seconds(0.5));
+            let ratio = Sos::new(m.sections.clone()).response(w).norm() * m.gain
+                / limited.response(w).norm();
+            assert!((ratio - 1.0).abs() < 1e-12, "{}: {ratio}", m.name);
+        }
+    }
+
+    #[test]
+    fn a_failing_format_is_refused_naming_material_and_frequency() {
+        // Q15 of a 16th-order fit at a tolerance no 16-bit data path can meet.
+        let config = ExportConfig {
+            q15: true,
+            tolerance: Decibels(1e-3),
+            ..ExportConfig::default()
+        };
+        let err = prepare(builtin().get("gravel").unwrap(), &config).unwrap_err();
+        let ExportError::CheckFailed {
+            name,
+            format,
+            worst_db,
+            worst_hz,
+            ..
+        } = &err
+        else {
+            panic!("{err}");
+        };
+        assert_eq!((name.as_str(), *format), ("gravel", "Q15"));
+        assert!(*worst_db > 1e-3 && (20.0..=900.0).contains(worst_hz));
+        let text = err.to_string();
+        assert!(text.contains("gravel") && text.contains("Q15") && text.contains(" Hz"));
+    }
+
+    #[test]
+    fn unknown_material_and_bad_model_are_errors() {
+        let names = vec!["lava".to_string()];
+        let err = export_library(builtin(), "built-in", &names, &ExportConfig::default());
+        assert!(matches!(err, Err(ExportError::UnknownMaterial { .. })));
+        let mut model = builtin().get("sand").unwrap().clone();
+        model.filter.sos[0][4] = -2.5; // a pole outside the unit circle
+        model.filter.sos[0][5] = 1.5;
+        let err = prepare(&model, &ExportConfig::default()).unwrap_err();
+        assert!(matches!(err, ExportError::BadModel { .. }), "{err}");
+        let empty = crate::material::Library::new();
+        assert!(matches!(
+            export_library(&empty, "x", &[], &ExportConfig::default()),
+            Err(ExportError::Empty)
+        ));
+    }
+
+    #[test]
+    fn refined_q15_coefficients_are_never_worse_than_rounding_to_nearest() {
+        let config = ExportConfig::default();
+        for model in &builtin().materials {
+            let sos = limit_decay(&model.sos().unwrap(), model.sample_rate, Seconds(0.5));
+            let shifts = peak_shifts(&sos).unwrap();
+            let scaled = Sos::new(
+                sos.sections
+                    .iter()
+                    .zip(&shifts)
+                    .map(|(s, &m)| Biquad {
+                        b: s.b.map(|c| c / 2f64.powi(i32::from(m))),
+                        a: s.a,
+                    })
+                    .collect(),
+            );
+            let nearest: Vec<Q15Section> = scaled
+                .sections
+                .iter()
+                .map(|s| Q15Section::quantize(s.b, [s.a[1], s.a[2]], [0, 0], 0).unwrap())
+                .collect();
+            let refined = refine_q15(nearest.clone(), &scaled, model, &config);
+            let worst = |q: &[Q15Section]| {
+                let cascade = Sos::new(
+                    q.iter()
+                        .map(|s| {
+                            let (b, a) = s.coefficients();
+                            Biquad {
+                                b,
+                                a: [1.0, a[0], a[1]],
+                            }
+                        })
+                        .collect(),
+                );
+                model
+                    .band_hz
+                    .log_grid(config.grid_points)
+                    .iter()
+                    .map(|&f| {
+                        let w = model.sample_rate.omega(f);
+                        (20.0 * (cascade.response(w).norm() / scaled.response(w).norm()).log10())
+                            .abs()
+                    })
+                    .fold(0.0, f64::max)
+            };
+            let (before, after) = (worst(&nearest), worst(&refined));
+            assert!(after <= before, "{}: {after} > {before}", model.name);
+            assert!(
+                Sos::new(
+                    refined
+                        .iter()
+                        .map(|s| {
+                            let (b, a) = s.coefficients();
+                            Biquad {
+                                b,
+                                a: [1.0, a[0], a[1]],
+                            }
+                        })
+                        .collect()
+                )
+                .is_stable()
+            );
+        }
+    }
+
+    #[test]
+    fn dft_of_a_decaying_exponential_is_its_closed_form() {
+        let x: Vec<f64> = (0..5000).map(|n| 0.99f64.powi(n)).collect();
+        for w in [0.01, 0.5, 3.0] {
+            let exact = 1.0 / (Complex64::new(1.0, 0.0) - Complex64::from_polar(0.99, -w));
+            assert!((dft(&x, w) - exact).norm() < 1e-9 * exact.norm());
+        }
+    }
+}

@@ -1,0 +1,404 @@
+//! The exported C header, compiled with the system C compiler and run against the Rust
+//! cascades, for every built-in material.
+//!
+//! The compiler is `$CC` or `cc`; without one the test is skipped with a message, unless
+//! `UNDERFOOT_REQUIRE_CC=1` (CI sets it).
+
+use std::path::Path;
+use std::process::Command;
+
+use underfoot::export::{self, ExportConfig, c, dft};
+use underfoot::material::builtin::builtin;
+use underfoot::safety::{Limiter, LimiterReport};
+use underfoot::signal::fixed::{
+    F32State, Q15State, Q31State, f32_cascade, q15_cascade, q31_cascade, to_q15, to_q31,
+};
+use underfoot::signal::noise::SplitMix64;
+use underfoot::units::{Decibels, SampleRate, Seconds};
+
+const DRIVER: &str = r#"
+#define UNDERFOOT_IMPLEMENTATION
+#include "materials.h"
+#include <stdio.h>
+#include <stdlib.h>
+
+/* driver NAME N IN OUT CEILING_BITS RELEASE_BITS: IN holds n f32, n int16, n int32;
+ * OUT gets the f32, Q15 and Q31 cascades' outputs and the limited f32 output. */
+int main(int argc, char **argv) {
+    const uf_material *m;
+    FILE *in, *out;
+    long n, i;
+    float *xf, *yf, *yl;
+    int16_t *x15, *y15;
+    int32_t *x31, *y31;
+    uf_f32_state sf[64];
+    uf_q15_state s15[64];
+    uf_q31_state s31[64];
+    uf_limiter lim;
+    union { uint32_t u; float f; } ceiling, release;
+    if (argc != 7) return 2;
+    m = uf_find(argv[1]);
+    if (m == 0 || m->sections > 64) return 3;
+    n = atol(argv[2]);
+    ceiling.u = (uint32_t)strtoul(argv[5], 0, 10);
+    release.u = (uint32_t)strtoul(argv[6], 0, 10);
+    xf = malloc(sizeof(float) * (size_t)n); yf = malloc(sizeof(float) * (size_t)n);
+    yl = malloc(sizeof(float) * (size_t)n);
+    x15 = malloc(sizeof(int16_t) * (size_t)n); y15 = malloc(sizeof(int16_t) * (size_t)n);
+    x31 = malloc(sizeof(int32_t) * (size_t)n); y31 = malloc(sizeof(int32_t) * (size_t)n);
+    if (!xf || !yf || !yl || !x15 || !y15 || !x31 || !y31) return 4;
+    in = fopen(argv[3], "rb");
+    if (in == 0) return 5;
+    if (fread(xf, sizeof(float), (size_t)n, in) != (size_t)n) return 6;
+    if (fread(x15, sizeof(int16_t), (size_t)n, in) != (size_t)n) return 6;
+    if (fread(x31, sizeof(int32_t), (size_t)n, in) != (size_t)n) return 6;
+    fclose(in);
+    uf_f32_reset(sf, m->sections);
+    uf_q15_reset(s15, m->sections);
+    uf_q31_reset(s31, m->sections);
+    uf_limiter_init(&lim, ceiling.f, release.f);
+    for (i = 0; i < n; ++i) {
+        yf[i] = uf_f32_cascade(m->f32, sf, m->sections, xf[i]);
+        yl[i] = uf_limiter_tick(&lim, yf[i] * m->gain);
+        y15[i] = m->q15 ? uf_q15_cascade(m->q15, s15, m->sections, x15[i]) : 0;
+        y31[i] = m->q31 ? uf_q31_cascade(m->q31, s31, m->sections, x31[i]) : 0;
+    }
+    out = fopen(argv[4], "wb");
+    if (out == 0) return 7;
+    fwrite(yf, sizeof(float), (size_t)n, out);
+    fwrite(y15, sizeof(int16_t), (size_t)n, out);
+    fwrite(y31, sizeof(int32_t), (size_t)n, out);
+    fwrite(yl, sizeof(float), (size_t)n, out);
+    fclose(out);
+    free(xf); free(yf); free(yl); free(x15); free(y15); free(x31); free(y31);
+    return 0;
+}
+"#;
+
+fn compiler() -> Option<String> {
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".to_string());
+    let found = Command::new(&cc)
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if found {
+        return Some(cc);
+    }
+    assert!(
+        std::env::var("UNDERFOOT_REQUIRE_CC").as_deref() != Ok("1"),
+        "UNDERFOOT_REQUIRE_CC=1 but no C compiler ({cc}) was found"
+    );
+    eprintln!(
+        "firmware: no C compiler ({cc}) found; skipping (set CC, or UNDERFOOT_REQUIRE_CC=1 to fail)"
+    );
+    None
+}
+
+fn compile(cc: &str, dir: &Path, header: &str) -> std::path::PathBuf {
+    std::fs::write(dir.join("materials.h"), header).unwrap();
+    std::fs::write(dir.join("driver.c"), DRIVER).unwrap();
+    // The header on its own, without the implementation, must compile cleanly too.
+    std::fs::write(
+        dir.join("plain.c"),
+        "#include \"materials.h\"\nint main(void) { return UF_MATERIAL_COUNT == 0; }\n",
+    )
+    .unwrap();
+    let exe = dir.join("driver");
+    for (src, out) in [("driver.c", exe.clone()), ("plain.c", dir.join("plain"))] {
+        let result = Command::new(cc)
+            .args([
+                "-std=c99",
+                "-Wall",
+                "-Wextra",
+                "-Werror",
+                "-pedantic",
+                "-O2",
+                "-o",
+            ])
+            .arg(&out)
+            .arg(dir.join(src))
+            .output()
+            .unwrap();
+        assert!(
+            result.status.success(),
+            "{cc} {src}: {}",
+            String::from_utf8_lossy(&result.stderr)
+        );
+    }
+    exe
+}
+
+struct Outputs {
+    f32: Vec<f32>,
+    q15: Vec<i16>,
+    q31: Vec<i32>,
+    limited: Vec<f32>,
+}
+
+fn run(exe: &Path, dir: &Path, name: &str, x: &[f64], ceiling: f32, release: f32) -> Outputs {
+    let n = x.len();
+    let mut bytes = Vec::new();
+    for v in x {
+        bytes.extend((*v as f32).to_ne_bytes());
+    }
+    for v in x {
+        bytes.extend(to_q15(*v as f32).to_ne_bytes());
+    }
+    for v in x {
+        bytes.extend(to_q31(*v).to_ne_bytes());
+    }
+    let (input, output) = (dir.join("in.bin"), dir.join("out.bin"));
+    std::fs::write(&input, bytes).unwrap();
+    let status = Command::new(exe)
+        .arg(name)
+        .arg(n.to_string())
+        .arg(&input)
+        .arg(&output)
+        .arg(ceiling.to_bits().to_string())
+        .arg(release.to_bits().to_string())
+        .status()
+        .unwrap();
+    assert!(status.success(), "driver on {name}: {status}");
+    let out = std::fs::read(&output).unwrap();
+    assert_eq!(out.len(), n * 14);
+    let (f, rest) = out.split_at(4 * n);
+    let (q15, rest) = rest.split_at(2 * n);
+    let (q31, limited) = rest.split_at(4 * n);
+    Outputs {
+        f32: f
+            .chunks(4)
+            .map(|c| f32::from_ne_bytes(c.try_into().unwrap()))
+            .collect(),
+        q15: q15
+            .chunks(2)
+            .map(|c| i16::from_ne_bytes(c.try_into().unwrap()))
+            .collect(),
+        q31: q31
+            .chunks(4)
+            .map(|c| i32::from_ne_bytes(c.try_into().unwrap()))
+            .collect(),
+        limited: limited
+            .chunks(4)
+            .map(|c| f32::from_ne_bytes(c.try_into().unwrap()))
+            .collect(),
+    }
+}
+
+/// A drive-like input: a heel strike's force derivative (a raised-cosine pulse and its
+/// rebound) with a little sensor noise, seeded; peak about 0.9.
+fn drive(n: usize, seed: u64) -> Vec<f64> {
+    let mut g = SplitMix64::new(seed);
+    (0..n)
+        .map(|i| {
+            let t = i as f64 / 60.0;
+            let pulse = if t < 2.0 {
+                (std::f64::consts::PI * t).sin() * 0.85
+            } else {
+                0.0
+            };
+            pulse + 0.02 * g.symmetric()
+        })
+        .collect()
+}
+
+#[test]
+fn exported_c_matches_rust_for_every_builtin_material() {
+    let Some(cc) = compiler() else { return };
+    let library = builtin();
+    // The default export (f32 and Q31) must pass its own check for every material.
+    let strict = export::export_library(library, "built-in", &[], &ExportConfig::default())
+        .expect("the built-in library exports with the default settings");
+    // The header under test carries Q15 too, whatever its deviation, for bit-exactness.
+    let loose = ExportConfig {
+        q15: true,
+        tolerance: Decibels(1e3),
+        ..ExportConfig::default()
+    };
+    let exported = export::export_library(library, "built-in", &[], &loose).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let exe = compile(&cc, dir.path(), &c::header(&exported));
+
+    let rate = SampleRate(2000);
+    let ceiling = Decibels(-12.0);
+    let release_time = Seconds(0.05);
+    let release = (1.0 - (-1.0 / (release_time.0 * rate.hz())).exp()) as f32;
+
+    for (m, strict_m) in exported.materials.iter().zip(&strict.materials) {
+        assert_eq!(
+            m.q31, strict_m.q31,
+            "{}: Q31 does not depend on Q15",
+            m.name
+        );
+        let n = m.impulse_samples;
+        let mut impulse = vec![0.0; n];
+        impulse[0] = 1.0;
+        for (what, x) in [("impulse", impulse), ("drive", drive(n, 7))] {
+            let got = run(
+                &exe,
+                dir.path(),
+                &m.name,
+                &x,
+                ceiling.to_amplitude() as f32,
+                release,
+            );
+            // Rust, the same loops.
+            let mut s15 = vec![Q15State::default(); m.q15.len()];
+            let mut s31 = vec![Q31State::default(); m.q31.len()];
+            let mut sf = vec![F32State::default(); m.f32.len()];
+            let mut limiter = Limiter::new(ceiling, release_time, rate);
+            let mut report = LimiterReport::default();
+            let mut max_f32_err = 0.0f32;
+            for (i, &xi) in x.iter().enumerate() {
+                let y15 = q15_cascade(&m.q15, &mut s15, to_q15(xi as f32));
+                let y31 = q31_cascade(&m.q31, &mut s31, to_q31(xi));
+                let yf = f32_cascade(&m.f32, &mut sf, xi as f32);
+                let yl = limiter.tick(got.f32[i] * m.gain as f32, &mut report);
+                assert_eq!(got.q15[i], y15, "{} {what}: Q15 sample {i}", m.name);
+                assert_eq!(got.q31[i], y31, "{} {what}: Q31 sample {i}", m.name);
+                assert_eq!(got.limited[i], yl, "{} {what}: limiter sample {i}", m.name);
+                assert!(got.limited[i].abs() <= limiter.ceiling());
+                max_f32_err = max_f32_err.max((got.f32[i] - yf).abs());
+            }
+            let peak = got.f32.iter().fold(0.0f32, |p, v| p.max(v.abs()));
+            assert!(
+                max_f32_err <= 1e-5 * peak.max(1e-3),
+                "{} {what}: f32 differs by {max_f32_err} (peak {peak})",
+                m.name
+            );
+            if what != "impulse" {
+                continue;
+            }
+            // The C impulse responses against the f64 model over the band.
+            let model = library.get(&m.name).unwrap();
+            let reference = export_reference(m);
+            let grid = model.band_hz.log_grid(ExportConfig::default().grid_points);
+            let worst = |ir: Vec<f64>| {
+                grid.iter()
+                    .map(|&f| {
+                        let w = model.sample_rate.omega(f);
+                        (20.0 * (dft(&ir, w).norm() / reference.response(w).norm()).log10()).abs()
+                    })
+                    .fold(0.0, f64::max)
+            };
+            let q31_db = worst(
+                got.q31
+                    .iter()
+                    .map(|&v| f64::from(v) / f64::from(i32::MAX))
+                    .collect(),
+            );
+            let q15_db = worst(
+                got.q15
+                    .iter()
+                    .map(|&v| f64::from(v) / f64::from(i16::MAX))
+                    .collect(),
+            );
+            let f32_db = worst(got.f32.iter().map(|&v| f64::from(v)).collect());
+            eprintln!(
+                "{:<8} C impulse response vs f64 over the band: f32 {f32_db:.5} dB, Q15 {q15_db:.3} dB, Q31 {q31_db:.5} dB",
+                m.name
+            );
+            assert!(q31_db <= 0.5, "{}: Q31 {q31_db} dB", m.name);
+            assert!(f32_db <= 0.5, "{}: f32 {f32_db} dB", m.name);
+            // Q15 is refused where the exporter's own check fails; where it passes, the C
+            // output agrees.
+            let q15_passes = export::prepare(
+                model,
+                &ExportConfig {
+                    q15: true,
+                    ..ExportConfig::default()
+                },
+            )
+            .is_ok();
+            if q15_passes {
+                assert!(q15_db <= 0.5 + 1e-9, "{}: Q15 {q15_db} dB", m.name);
+            }
+        }
+    }
+}
+
+/// The float model the export is checked against: the scaled f64 sections.
+fn export_reference(m: &export::Exported) -> underfoot::signal::Sos {
+    underfoot::signal::Sos::new(m.sections.clone())
+}
+
+#[test]
+fn header_is_deterministic_and_names_the_library() {
+    let library = builtin();
+    let names = vec!["gravel".to_string()];
+    let a = export::export_library(library, "built-in", &names, &ExportConfig::default()).unwrap();
+    let b = export::export_library(library, "built-in", &names, &ExportConfig::default()).unwrap();
+    let (ha, hb) = (c::header(&a), c::header(&b));
+    assert_eq!(ha, hb);
+    assert!(ha.contains(&a.library_sha256) && a.library_sha256.len() == 64);
+    assert!(ha.contains("gravel") && !ha.contains("\"sand\""));
+    assert!(ha.contains(env!("CARGO_PKG_VERSION")));
+}
+
+/// A small library: one hand-built resonant material, enough to cover every part of the
+/// header (float, Q15 and Q31 tables, scaling, the implementation).
+fn small_library() -> underfoot::material::Library {
+    use underfoot::material::{FilterCoefficients, FitRecord, Library, MaterialModel};
+    use underfoot::signal::{Biquad, Sos};
+    use underfoot::units::{Band, Hz};
+    let rate = SampleRate(2000);
+    let band = Band::new(20.0, 900.0);
+    let sos = Sos::new(vec![
+        Biquad {
+            b: [0.1, 0.0, -0.1],
+            a: [1.0, -1.6, 0.81],
+        },
+        Biquad {
+            b: [1.0, -1.2, 0.5],
+            a: [1.0, -1.9, 0.95],
+        },
+    ]);
+    let grid: Vec<f64> = band.log_grid(24).iter().map(|f| f.0).collect();
+    let mag: Vec<f64> = grid
+        .iter()
+        .map(|&f| sos.response(rate.omega(Hz(f))).norm())
+        .collect();
+    let mut library = Library::new();
+    library.upsert(MaterialModel {
+        name: "test-tile".to_string(),
+        sample_rate: rate,
+        band_hz: band,
+        order: sos.order(),
+        filter: FilterCoefficients::from_sos(&sos),
+        fit: FitRecord {
+            grid_hz: grid,
+            measured: mag.clone(),
+            model: mag,
+            nrmse: 0.0,
+            lsd_db: 0.0,
+            method: "hand-built".to_string(),
+            strikes: 1,
+            fit_seconds: 0.0,
+        },
+        sources: Vec::new(),
+        physical: None,
+    });
+    library
+}
+
+#[test]
+fn header_of_a_small_library_matches_its_golden_file() {
+    // To accept a deliberate change: UNDERFOOT_BLESS=1 cargo test -p underfoot --test firmware
+    let golden = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden/small_materials.h");
+    let config = ExportConfig {
+        q15: true,
+        ..ExportConfig::default()
+    };
+    let exported = export::export_library(&small_library(), "small test library", &[], &config)
+        .expect("the small library passes in Q15 and Q31");
+    let header = c::header(&exported);
+    if std::env::var("UNDERFOOT_BLESS").as_deref() == Ok("1") {
+        std::fs::create_dir_all(golden.parent().unwrap()).unwrap();
+        std::fs::write(&golden, &header).unwrap();
+    }
+    let expected =
+        std::fs::read_to_string(&golden).expect("golden header (UNDERFOOT_BLESS=1 writes it)");
+    assert_eq!(
+        header, expected,
+        "the header changed; UNDERFOOT_BLESS=1 to accept"
+    );
+}
