@@ -4,7 +4,9 @@
 
 use std::path::Path;
 
-use underfoot::io::serial::{FrameData, crc16_ccitt_false, encode_frame};
+use underfoot::io::serial::{
+    FrameData, ServoFrame, crc16_ccitt_false, encode_frame, encode_servo_frame,
+};
 
 /// The hex bytes on the guide's line that starts with `label`.
 fn bytes_after(guide: &str, label: &str) -> Vec<u8> {
@@ -38,4 +40,22 @@ fn the_worked_force_frame_is_what_the_encoder_sends() {
         "the guide's payload checksum"
     );
     assert!(guide.contains(&format!("CRC 0x{:04X}", crc16_ccitt_false(body))));
+}
+
+#[test]
+fn the_worked_servo_frame_is_what_the_host_sends() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/hardware.md");
+    let guide = std::fs::read_to_string(&path).expect("docs/hardware.md");
+    let payload = bytes_after(&guide, "servo payload");
+    let wire = bytes_after(&guide, "servo wire");
+
+    let frame = ServoFrame::new(7, &[1500, 1720, 1000]).unwrap();
+    let mut sent = Vec::new();
+    encode_servo_frame(&frame, &mut sent);
+    assert_eq!(wire, sent, "the guide's servo wire bytes");
+
+    let (body, crc) = payload.split_at(payload.len() - 2);
+    let expected = crc16_ccitt_false(body);
+    assert_eq!(expected, u16::from_le_bytes([crc[0], crc[1]]));
+    assert!(guide.contains(&format!("CRC 0x{expected:04X}")));
 }
