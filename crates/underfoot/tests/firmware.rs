@@ -205,16 +205,16 @@ fn drive(n: usize, seed: u64) -> Vec<f64> {
 fn exported_c_matches_rust_for_every_builtin_material() {
     let Some(cc) = compiler() else { return };
     let library = builtin();
-    // The default export (f32 and Q31) must pass its own check for every material.
-    let strict = export::export_library(library, "built-in", &[], &ExportConfig::default())
+    // The default export (f32, Q15 and Q31) must pass its own check for every material.
+    let exported = export::export_library(library, "built-in", &[], &ExportConfig::default())
         .expect("the built-in library exports with the default settings");
-    // The header under test carries Q15 too, whatever its deviation, for bit-exactness.
-    let loose = ExportConfig {
-        q15: true,
-        tolerance: Decibels(1e3),
+    assert!(exported.materials.iter().all(|m| m.with_q15 && m.with_q31));
+    // Without Q15, Q31 is the same.
+    let q31_only = ExportConfig {
+        q15: false,
         ..ExportConfig::default()
     };
-    let exported = export::export_library(library, "built-in", &[], &loose).unwrap();
+    let strict = export::export_library(library, "built-in", &[], &q31_only).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let exe = compile(&cc, dir.path(), &c::header(&exported));
 
@@ -299,19 +299,7 @@ fn exported_c_matches_rust_for_every_builtin_material() {
             );
             assert!(q31_db <= 0.5, "{}: Q31 {q31_db} dB", m.name);
             assert!(f32_db <= 0.5, "{}: f32 {f32_db} dB", m.name);
-            // Q15 is refused where the exporter's own check fails; where it passes, the C
-            // output agrees.
-            let q15_passes = export::prepare(
-                model,
-                &ExportConfig {
-                    q15: true,
-                    ..ExportConfig::default()
-                },
-            )
-            .is_ok();
-            if q15_passes {
-                assert!(q15_db <= 0.5 + 1e-9, "{}: Q15 {q15_db} dB", m.name);
-            }
+            assert!(q15_db <= 0.5, "{}: Q15 {q15_db} dB", m.name);
         }
     }
 }
@@ -384,12 +372,13 @@ fn small_library() -> underfoot::material::Library {
 fn header_of_a_small_library_matches_its_golden_file() {
     // To accept a deliberate change: UNDERFOOT_BLESS=1 cargo test -p underfoot --test firmware
     let golden = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/golden/small_materials.h");
-    let config = ExportConfig {
-        q15: true,
-        ..ExportConfig::default()
-    };
-    let exported = export::export_library(&small_library(), "small test library", &[], &config)
-        .expect("the small library passes in Q15 and Q31");
+    let exported = export::export_library(
+        &small_library(),
+        "small test library",
+        &[],
+        &ExportConfig::default(),
+    )
+    .expect("the small library passes in Q15 and Q31");
     let header = c::header(&exported);
     if std::env::var("UNDERFOOT_BLESS").as_deref() == Ok("1") {
         std::fs::create_dir_all(golden.parent().unwrap()).unwrap();

@@ -138,16 +138,19 @@ fn tables(h: &mut String, i: usize, m: &Exported) {
             let c = |v: i16| int(i64::from(v), 16);
             let _ = writeln!(
                 h,
-                "    {{{{{}, {}, {}}}, {{{}, {}}}, {}u, {{{}, {}}}, {}u}},",
-                c(s.b[0]),
-                c(s.b[1]),
-                c(s.b[2]),
-                c(s.a[0]),
-                c(s.a[1]),
-                s.shift,
-                s.feedback[0],
-                s.feedback[1],
-                s.scale
+                "    {{{}, {}u, {{{}, {}}}, {{{}, {}}}, {}u, {{{}, {}}}, {{{}, {}}}, {}u}},",
+                c(s.b0),
+                s.b_frac,
+                s.g[0],
+                s.g[1],
+                c(s.e[0]),
+                c(s.e[1]),
+                s.e_frac,
+                s.c[0],
+                s.c[1],
+                c(s.d[0]),
+                c(s.d[1]),
+                s.d_frac
             );
         }
         let _ = writeln!(h, "}};");
@@ -239,17 +242,23 @@ const PRELUDE: &str = r#" */
 
 /* One second-order section, direct form I:
  *   y[n] = b0 x[n] + b1 x[n-1] + b2 x[n-2] - a1 y[n-1] - a2 y[n-2]
- * Fixed point: coefficients in Q(shift).(15 - shift) (Q15) or Q(shift).(31 - shift)
- * (Q31); the numerator's sum is shifted right by `scale` bits in the accumulator;
- * `feedback` weights the past rounding errors (error-spectrum shaping). Every sum
- * saturates, the output saturates to the data format. */
+ * Q15 (16-bit coefficients, 32-bit signal path): with B = b0 2^-b_frac, the section's
+ * coefficients (scaling included) are B, g[0] B + e[0] 2^-e_frac, g[1] B + e[1] 2^-e_frac
+ * and c[0] + d[0] 2^-d_frac, c[1] + d[1] 2^-d_frac: the integer parts g and c
+ * are applied exactly, so the 16 bits of e and d hold only the small remainders that
+ * place zeros and poles near z = 1. Sections pass Q31 values; the cascade's input and
+ * output are Q15. 16x32-bit products add up in a 64-bit accumulator.
+ * Q31: coefficients in Q(shift).(31 - shift); the numerator's sum is shifted right by
+ * `scale` bits in the accumulator; `feedback` weights the past rounding errors
+ * (error-spectrum shaping).
+ * Every sum saturates, every output saturates to its format. */
 typedef struct { float b[3]; float a[2]; } uf_f32_section;
-typedef struct { int16_t b[3]; int16_t a[2]; uint8_t shift; int8_t feedback[2]; uint8_t scale; } uf_q15_section;
+typedef struct { int16_t b0; uint8_t b_frac; int8_t g[2]; int16_t e[2]; uint8_t e_frac; int8_t c[2]; int16_t d[2]; uint8_t d_frac; } uf_q15_section;
 typedef struct { int32_t b[3]; int32_t a[2]; uint8_t shift; int8_t feedback[2]; uint8_t scale; } uf_q31_section;
 
 /* Section states: zero them (uf_*_reset) before the first sample. */
 typedef struct { float x[2]; float y[2]; } uf_f32_state;
-typedef struct { int16_t x[2]; int16_t y[2]; int32_t e[2]; } uf_q15_state;
+typedef struct { int32_t x[2]; int32_t y[2]; } uf_q15_state;
 typedef struct { int32_t x[2]; int32_t y[2]; int64_t e[2]; } uf_q31_state;
 
 /* A material. Its model's output is `gain` times the cascade's; the cascade runs at
@@ -323,7 +332,6 @@ void uf_q15_reset(uf_q15_state *state, unsigned sections) {
     unsigned i;
     for (i = 0; i < sections; ++i) {
         state[i].x[0] = state[i].x[1] = state[i].y[0] = state[i].y[1] = 0;
-        state[i].e[0] = state[i].e[1] = 0;
     }
 }
 
@@ -349,13 +357,6 @@ float uf_f32_cascade(const uf_f32_section *sos, uf_f32_state *state, unsigned se
     return x;
 }
 
-/* Saturating 32-bit add and subtract, through 64 bits. */
-static int32_t uf_sat32(int64_t v) {
-    return v > INT32_MAX ? INT32_MAX : (v < INT32_MIN ? INT32_MIN : (int32_t)v);
-}
-static int32_t uf_add32(int32_t a, int32_t b) { return uf_sat32((int64_t)a + b); }
-static int32_t uf_sub32(int32_t a, int32_t b) { return uf_sat32((int64_t)a - b); }
-
 /* Saturating 64-bit add and subtract, without overflowing. */
 static int64_t uf_add64(int64_t a, int64_t b) {
     if (b > 0 && a > INT64_MAX - b) return INT64_MAX;
@@ -368,32 +369,43 @@ static int64_t uf_sub64(int64_t a, int64_t b) {
     return a - b;
 }
 
+/* v 2^n (n <= 62), saturated. */
+static int64_t uf_shl64(int64_t v, unsigned n) {
+    if (v > (INT64_MAX >> n)) return INT64_MAX;
+    if (v < -(INT64_MAX >> n) - 1) return INT64_MIN;
+    return v * ((int64_t)1 << n);
+}
+
 int16_t uf_q15_cascade(const uf_q15_section *sos, uf_q15_state *state, unsigned sections, int16_t x) {
     unsigned i;
+    int32_t v = (int32_t)x * 65536;
+    int64_t out;
     for (i = 0; i < sections; ++i) {
         const uf_q15_section *s = &sos[i];
         uf_q15_state *st = &state[i];
-        unsigned sh = 15u - (s->shift > 14u ? 14u : s->shift);
-        unsigned scale = s->scale > 30u ? 30u : s->scale;
-        int32_t acc, rounded, y, e;
-        acc = (int32_t)s->b[0] * x;
-        acc = uf_add32(acc, (int32_t)s->b[1] * st->x[0]);
-        acc = uf_add32(acc, (int32_t)s->b[2] * st->x[1]);
-        acc >>= scale;
-        acc = uf_sub32(acc, (int32_t)s->a[0] * st->y[0]);
-        acc = uf_sub32(acc, (int32_t)s->a[1] * st->y[1]);
-        acc = uf_add32(acc, (int32_t)s->feedback[0] * st->e[0]);
-        acc = uf_add32(acc, (int32_t)s->feedback[1] * st->e[1]);
-        rounded = uf_add32(acc, (int32_t)1 << (sh - 1u)) >> sh;
-        y = rounded > INT16_MAX ? INT16_MAX : (rounded < INT16_MIN ? INT16_MIN : rounded);
-        /* y * 2^sh, not y << sh: shifting a negative value left is undefined in C. */
-        e = y == rounded ? acc - y * ((int32_t)1 << sh) : 0;
-        st->x[1] = st->x[0]; st->x[0] = x;
-        st->y[1] = st->y[0]; st->y[0] = (int16_t)y;
-        st->e[1] = st->e[0]; st->e[0] = e;
-        x = (int16_t)y;
+        unsigned fb = s->b_frac > 62u ? 62u : s->b_frac;
+        unsigned fe = s->e_frac > 62u ? 62u : s->e_frac;
+        unsigned fd = s->d_frac < 15u ? 15u : (s->d_frac > 28u ? 28u : s->d_frac);
+        int64_t w, num, acc, rounded;
+        int32_t y;
+        /* |w| < 2^39, |b0 w| < 2^54: these cannot overflow. */
+        w = (int64_t)v + (int64_t)s->g[0] * st->x[0] + (int64_t)s->g[1] * st->x[1];
+        num = (int64_t)s->b0 * w;
+        acc = fd >= fb ? uf_shl64(num, fd - fb) : num >> (fb - fd);
+        num = (int64_t)s->e[0] * st->x[0] + (int64_t)s->e[1] * st->x[1];
+        acc = uf_add64(acc, fd >= fe ? uf_shl64(num, fd - fe) : num >> (fe - fd));
+        acc = uf_sub64(acc, uf_shl64((int64_t)s->c[0] * st->y[0], fd));
+        acc = uf_sub64(acc, uf_shl64((int64_t)s->c[1] * st->y[1], fd));
+        acc = uf_sub64(acc, (int64_t)s->d[0] * st->y[0]);
+        acc = uf_sub64(acc, (int64_t)s->d[1] * st->y[1]);
+        rounded = uf_add64(acc, (int64_t)1 << (fd - 1u)) >> fd;
+        y = rounded > INT32_MAX ? INT32_MAX : (rounded < INT32_MIN ? INT32_MIN : (int32_t)rounded);
+        st->x[1] = st->x[0]; st->x[0] = v;
+        st->y[1] = st->y[0]; st->y[0] = y;
+        v = y;
     }
-    return x;
+    out = ((int64_t)v + 32768) >> 16;
+    return (int16_t)(out > INT16_MAX ? INT16_MAX : (out < INT16_MIN ? INT16_MIN : out));
 }
 
 int32_t uf_q31_cascade(const uf_q31_section *sos, uf_q31_state *state, unsigned sections, int32_t x) {
