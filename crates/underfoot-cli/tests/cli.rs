@@ -1211,6 +1211,22 @@ fn export_writes_a_c_header_and_refuses_what_fails_the_check() {
     let header = fs::read_to_string(&out).unwrap();
     assert!(header.contains("#define UF_MATERIAL_COUNT 1u"));
     assert!(header.contains("\"board\"") && header.contains("uf_q31_cascade"));
+    // Both fixed-point formats by default; `--fixed` picks.
+    assert!(header.contains("uf_m0_board_q15[") && header.contains("uf_m0_board_q31["));
+    let only = dir.path().join("q31.h");
+    assert_ok(&run(&[
+        "export",
+        "--out",
+        s(&only),
+        "--library",
+        s(&lib),
+        "--materials",
+        "board",
+        "--fixed",
+        "q31",
+    ]));
+    let q31_only = fs::read_to_string(&only).unwrap();
+    assert!(!q31_only.contains("uf_m0_board_q15[") && q31_only.contains("uf_m0_board_q31["));
 
     // An unknown material, and a tolerance no quantised filter meets: status 1, named.
     let e = assert_error(&run(&[
