@@ -81,14 +81,25 @@
 //!   `\[15, 28\]` that fits both. `c_i y` is a shift and an add of the 32-bit state; the
 //!   remainder of a pole near `z = 1` is small (`a_1 = -1.98`: `d_1 = 0.02`, `f_d = 20`),
 //!   so its step is `2^-20` instead of `2^-14`.
-//! * The **numerator** `b 2^-m` (scaling included) is stored as `round(b 2^{f_b})` with
-//!   the largest `f_b` that fits all three, so it always uses its 16 bits whatever the
-//!   scaling, and the scaling shift `m` disappears into `f_b`.
+//! * The **numerator** has the same problem: the fit pairs each low resonance with
+//!   zeros next to it, so `b_1 / b_0` and `b_2 / b_0` are close to -2 and 1 too. It is
+//!   split the same way around `b_0` (scaling `2^-m` included): `b_0` is stored as
+//!   `round(b_0 2^{f_b})` with the largest `f_b` that fits (16 bits whatever the
+//!   scaling, which disappears into `f_b`), and `b_j = g_j b_0 + e_j` for `j = 1, 2`,
+//!   with `g_j = round(b_j / b_0)` (clamped to `\[-2, 2\]`, 0 when `b_0 = 0`) and the
+//!   remainders `e_j`, taken from the *quantised* `b_0` so that its rounding costs
+//!   nothing, stored in 16 bits with their own exponent `f_e`. `g_j x` is again a shift
+//!   and an add of the 32-bit state.
 //!
-//! Per section, with `x`, `y` Q31:
+//! Per section, with `x`, `y` Q31 and every integer part applied exactly:
 //!
-//! $$ acc = 2^{f_d - f_b} \sum_j b_j x\[n-j\] - 2^{f_d} (c_1 y\[n-1\] + c_2 y\[n-2\]) - (d_1 y\[n-1\] + d_2 y\[n-2\]), \quad y\[n\] = \operatorname{round}(acc\, 2^{-f_d}) $$
+//! $$ w = x\[n\] + g_1 x\[n-1\] + g_2 x\[n-2\] $$
 //!
+//! $$ acc = 2^{f_d - f_b} b_0 w + 2^{f_d - f_e} (e_1 x\[n-1\] + e_2 x\[n-2\]) - 2^{f_d} (c_1 y\[n-1\] + c_2 y\[n-2\]) - (d_1 y\[n-1\] + d_2 y\[n-2\]) $$
+//!
+//! $$ y\[n\] = \operatorname{round}(acc\, 2^{-f_d}) $$
+//!
+//! five 16 x 32-bit multiplies (`b_0 w` is 16 x 35 bits) as in a plain direct form,
 //! in that order, the numerator aligned by a left shift (saturating) or an arithmetic
 //! right shift (the bits it drops lie 2^15 below the output's step), every addition
 //! saturating, and the output saturated to 32 bits.
