@@ -215,6 +215,41 @@ pub struct ApplyStats {
     pub missing: usize,
 }
 
+impl ApplyStats {
+    /// `curve`'s force for `raw` in `f32`, counting what is not an ordinary reading: a
+    /// reading outside the curve's range (clamped to it), and a non-finite reading or a
+    /// force too large for `f32`, which give 0 N. The one per-sensor step of every way
+    /// raw readings become newtons ([`SensorCalibration::apply`], the serial inputs'
+    /// per-sensor scaling).
+    pub(crate) fn force(&mut self, curve: &SensorCurve, raw: f64) -> f32 {
+        match curve.force(raw) {
+            // Only a hand-edited file's extreme scale can overflow f32; treat it as a bad
+            // reading rather than pass infinity to the synthesis.
+            Some((f, side)) if (f.0 as f32).is_finite() => {
+                match side {
+                    std::cmp::Ordering::Less => self.below_range += 1,
+                    std::cmp::Ordering::Greater => self.above_range += 1,
+                    std::cmp::Ordering::Equal => {}
+                }
+                f.0 as f32
+            }
+            _ => {
+                self.non_finite += 1;
+                0.0
+            }
+        }
+    }
+}
+
+impl std::ops::AddAssign for ApplyStats {
+    fn add_assign(&mut self, other: Self) {
+        self.non_finite += other.non_finite;
+        self.above_range += other.above_range;
+        self.below_range += other.below_range;
+        self.missing += other.missing;
+    }
+}
+
 /// Every sensor's curve, in reading order.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SensorCalibration {
@@ -928,26 +963,7 @@ impl SensorCalibration {
                 stats.missing += 1;
                 continue;
             };
-            match curve.force(f64::from(r)) {
-                None => {
-                    *o = 0.0;
-                    stats.non_finite += 1;
-                }
-                // Only a hand-edited file's extreme scale can overflow f32; treat it as
-                // a bad reading rather than pass infinity to the synthesis.
-                Some((f, _)) if !(f.0 as f32).is_finite() => {
-                    *o = 0.0;
-                    stats.non_finite += 1;
-                }
-                Some((f, side)) => {
-                    *o = f.0 as f32;
-                    match side {
-                        std::cmp::Ordering::Less => stats.below_range += 1,
-                        std::cmp::Ordering::Greater => stats.above_range += 1,
-                        std::cmp::Ordering::Equal => {}
-                    }
-                }
-            }
+            *o = stats.force(curve, f64::from(r));
         }
         stats
     }

@@ -113,20 +113,7 @@ impl CountScale {
                 Some(SensorScale::Linear { newtons_per_count }) => {
                     *o = f32::from(c) * newtons_per_count;
                 }
-                Some(SensorScale::Curve(curve)) => match curve.force(f64::from(c)) {
-                    Some((f, side)) if (f.0 as f32).is_finite() => {
-                        *o = f.0 as f32;
-                        match side {
-                            std::cmp::Ordering::Less => stats.below_range += 1,
-                            std::cmp::Ordering::Greater => stats.above_range += 1,
-                            std::cmp::Ordering::Equal => {}
-                        }
-                    }
-                    _ => {
-                        *o = 0.0;
-                        stats.non_finite += 1;
-                    }
-                },
+                Some(SensorScale::Curve(curve)) => *o = stats.force(curve, f64::from(c)),
             }
         }
         stats

@@ -49,8 +49,8 @@ use std::time::{Duration, Instant};
 use serialport::SerialPort;
 
 use super::serial::{
-    Frame, FrameData, FrameDecoder, MAX_FRAME_SENSORS, MAX_FRAME_SERVOS, ServoFrame,
-    add_apply_stats, encode_frame, encode_servo_frame,
+    Frame, FrameData, FrameDecoder, MAX_FRAME_SENSORS, MAX_FRAME_SERVOS, ServoFrame, encode_frame,
+    encode_servo_frame,
 };
 use super::{EventSource, IoError, SourceState, SourceStats};
 use crate::engine::Event;
@@ -226,7 +226,7 @@ impl ProstheticHost {
         let s = self
             .scale
             .apply(counts, &mut self.newtons[..self.frame_sensors]);
-        add_apply_stats(&mut self.stats.scaling, s);
+        self.stats.scaling += s;
         self.bank.reading(&self.newtons[..self.frame_sensors]);
         self.stats.insole_frames += 1;
         self.pending_since.get_or_insert_with(Instant::now);

@@ -724,7 +724,7 @@ impl SerialSource {
             return;
         }
         let s = self.scale.apply(counts, &mut self.newtons[..self.sensors]);
-        add_apply_stats(&mut self.scaling, s);
+        self.scaling += s;
         let mut first = 0;
         for (channel, &n) in self.layout.iter().enumerate() {
             let newtons = &self.newtons[first..first + n];
@@ -739,14 +739,6 @@ impl SerialSource {
             self.events += 1;
         }
     }
-}
-
-/// Adds one frame's scaling counts to a running total.
-pub(crate) fn add_apply_stats(total: &mut ApplyStats, s: ApplyStats) {
-    total.non_finite += s.non_finite;
-    total.above_range += s.above_range;
-    total.below_range += s.below_range;
-    total.missing += s.missing;
 }
 
 impl EventSource for SerialSource {
