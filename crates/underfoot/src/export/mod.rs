@@ -381,56 +381,54 @@ pub fn prepare(model: &MaterialModel, config: &ExportConfig) -> Result<Exported,
         )
     };
     let n = impulse_length(&reference);
+    // Each format's check: its coefficients' response, and the impulse response its own
+    // loop computes. A format not asked for is still measured, for the report, but
+    // cannot fail the export.
+    let check = |format: &'static str,
+                 coefficients: Vec<([f64; 3], [f64; 2])>,
+                 impulse: Vec<f64>,
+                 enforced: bool| {
+        match checker.check(&model.name, format, &represented(coefficients), &impulse) {
+            (_, Some(e)) if enforced => Err(e),
+            (check, _) => Ok(check),
+        }
+    };
 
-    let q15_check = {
-        let coeffs = represented(q15.iter().map(Q15Section::coefficients).collect());
-        let mut states = vec![Q15State::default(); q15.len()];
-        let ir: Vec<f64> = (0..n)
-            .map(|i| {
-                let x = if i == 0 { i16::MAX } else { 0 };
-                f64::from(q15_cascade(&q15, &mut states, x)) / f64::from(i16::MAX)
-            })
-            .collect();
-        match checker.check(&model.name, "Q15", &coeffs, &ir) {
-            (_, Some(e)) if config.q15 => return Err(e),
-            (check, _) => check,
-        }
-    };
-    let q31_check = {
-        let coeffs = represented(q31.iter().map(Q31Section::coefficients).collect());
-        let mut states = vec![Q31State::default(); q31.len()];
-        let ir: Vec<f64> = (0..n)
-            .map(|i| {
-                let x = if i == 0 { i32::MAX } else { 0 };
-                f64::from(q31_cascade(&q31, &mut states, x)) / f64::from(i32::MAX)
-            })
-            .collect();
-        match checker.check(&model.name, "Q31", &coeffs, &ir) {
-            (_, Some(e)) if config.q31 => return Err(e),
-            (check, _) => check,
-        }
-    };
-    let f32_check = {
-        let coeffs = represented(
-            f32.iter()
-                .map(|s| (s.b.map(f64::from), [f64::from(s.a[0]), f64::from(s.a[1])]))
-                .collect(),
-        );
-        let mut states = vec![F32State::default(); f32.len()];
-        let ir: Vec<f64> = (0..n)
-            .map(|i| {
-                f64::from(f32_cascade(
-                    &f32,
-                    &mut states,
-                    if i == 0 { 1.0 } else { 0.0 },
-                ))
-            })
-            .collect();
-        match checker.check(&model.name, "f32", &coeffs, &ir) {
-            (_, Some(e)) => return Err(e),
-            (check, None) => check,
-        }
-    };
+    let mut states = vec![Q15State::default(); q15.len()];
+    let q15_check = check(
+        "Q15",
+        q15.iter().map(Q15Section::coefficients).collect(),
+        impulse_response(n, |first| {
+            let x = if first { i16::MAX } else { 0 };
+            f64::from(q15_cascade(&q15, &mut states, x)) / f64::from(i16::MAX)
+        }),
+        config.q15,
+    )?;
+    let mut states = vec![Q31State::default(); q31.len()];
+    let q31_check = check(
+        "Q31",
+        q31.iter().map(Q31Section::coefficients).collect(),
+        impulse_response(n, |first| {
+            let x = if first { i32::MAX } else { 0 };
+            f64::from(q31_cascade(&q31, &mut states, x)) / f64::from(i32::MAX)
+        }),
+        config.q31,
+    )?;
+    let mut states = vec![F32State::default(); f32.len()];
+    let f32_check = check(
+        "f32",
+        f32.iter()
+            .map(|s| (s.b.map(f64::from), [f64::from(s.a[0]), f64::from(s.a[1])]))
+            .collect(),
+        impulse_response(n, |first| {
+            f64::from(f32_cascade(
+                &f32,
+                &mut states,
+                if first { 1.0 } else { 0.0 },
+            ))
+        }),
+        true,
+    )?;
 
     Ok(Exported {
         name: model.name.clone(),
@@ -477,6 +475,12 @@ fn limit_decay(sos: &Sos, rate: SampleRate, longest: Seconds) -> Sos {
             })
             .collect(),
     )
+}
+
+/// `n` samples of a loop's impulse response; `tick(first)` runs one sample, `first` for
+/// the impulse.
+fn impulse_response(n: usize, mut tick: impl FnMut(bool) -> f64) -> Vec<f64> {
+    (0..n).map(|i| tick(i == 0)).collect()
 }
 
 /// Samples of impulse response the check computes: until the slowest pole has decayed
