@@ -287,22 +287,10 @@ impl AudioOutput {
         config: &AudioConfig,
         render: impl FnMut(&mut [f32], usize) + Send + 'static,
     ) -> Result<Self, IoError> {
-        let opened = open_device(config, Direction::Output)?;
-        let shared = Arc::new(Shared::default());
-        let stream = build_stream(&opened.device, &opened.chosen, Arc::clone(&shared), render)
-            .map_err(|e| IoError::Open {
-                device: opened.label.clone(),
-                reason: format!(
-                    "cannot build a {} channel, {}, {} output stream: {e}",
-                    opened.chosen.stream.channels, config.rate, opened.chosen.format
-                ),
-            })?;
-        let info = play_stream(&stream, &opened, config)?;
-        Ok(Self(Running {
-            stream,
-            info,
-            shared,
-        }))
+        Running::start(config, Direction::Output, |device, chosen, shared| {
+            build_stream(device, chosen, shared, render)
+        })
+        .map(Self)
     }
 
     /// What was opened.
@@ -332,6 +320,32 @@ struct Running {
 }
 
 impl Running {
+    /// Opens the device for `direction`, builds its stream with `build` (which gets the
+    /// counters the audio thread records into) and starts it.
+    fn start(
+        config: &AudioConfig,
+        direction: Direction,
+        build: impl FnOnce(&cpal::Device, &Chosen, Arc<Shared>) -> Result<cpal::Stream, cpal::Error>,
+    ) -> Result<Self, IoError> {
+        let opened = open_device(config, direction)?;
+        let shared = Arc::new(Shared::default());
+        let stream = build(&opened.device, &opened.chosen, Arc::clone(&shared)).map_err(|e| {
+            IoError::Open {
+                device: opened.label.clone(),
+                reason: format!(
+                    "cannot build a {} channel, {}, {} {direction} stream: {e}",
+                    opened.chosen.stream.channels, config.rate, opened.chosen.format
+                ),
+            }
+        })?;
+        let info = play_stream(&stream, &opened, config)?;
+        Ok(Self {
+            stream,
+            info,
+            shared,
+        })
+    }
+
     fn stop(self) -> StreamStats {
         // Pausing first makes the host output silence rather than cut off mid-buffer on
         // hosts that keep running until the stream is torn down. Failure to pause changes
@@ -369,27 +383,10 @@ impl AudioInput {
         config: &AudioConfig,
         on_input: impl FnMut(&[f32], usize) + Send + 'static,
     ) -> Result<Self, IoError> {
-        let opened = open_device(config, Direction::Input)?;
-        let shared = Arc::new(Shared::default());
-        let stream = build_input_stream(
-            &opened.device,
-            &opened.chosen,
-            Arc::clone(&shared),
-            on_input,
-        )
-        .map_err(|e| IoError::Open {
-            device: opened.label.clone(),
-            reason: format!(
-                "cannot build a {} channel, {}, {} input stream: {e}",
-                opened.chosen.stream.channels, config.rate, opened.chosen.format
-            ),
-        })?;
-        let info = play_stream(&stream, &opened, config)?;
-        Ok(Self(Running {
-            stream,
-            info,
-            shared,
-        }))
+        Running::start(config, Direction::Input, |device, chosen, shared| {
+            build_input_stream(device, chosen, shared, on_input)
+        })
+        .map(Self)
     }
 
     /// What was opened.
