@@ -8,6 +8,12 @@ use underfoot::io::serial::{
     FrameData, ServoFrame, crc16_ccitt_false, encode_frame, encode_servo_frame,
 };
 
+/// The hardware guide's text.
+fn guide() -> String {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/hardware.md");
+    std::fs::read_to_string(&path).expect("docs/hardware.md")
+}
+
 /// The hex bytes on the guide's line that starts with `label`.
 fn bytes_after(guide: &str, label: &str) -> Vec<u8> {
     let line = guide
@@ -22,8 +28,7 @@ fn bytes_after(guide: &str, label: &str) -> Vec<u8> {
 
 #[test]
 fn the_worked_force_frame_is_what_the_encoder_sends() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/hardware.md");
-    let guide = std::fs::read_to_string(&path).expect("docs/hardware.md");
+    let guide = guide();
     let payload = bytes_after(&guide, "payload");
     let wire = bytes_after(&guide, "wire");
 
@@ -44,8 +49,7 @@ fn the_worked_force_frame_is_what_the_encoder_sends() {
 
 #[test]
 fn the_worked_servo_frame_is_what_the_host_sends() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/hardware.md");
-    let guide = std::fs::read_to_string(&path).expect("docs/hardware.md");
+    let guide = guide();
     let payload = bytes_after(&guide, "servo payload");
     let wire = bytes_after(&guide, "servo wire");
 
