@@ -956,6 +956,8 @@ mod tests {
             method: "test".into(),
             strikes: 4,
             fit_seconds: 1.0,
+            longest_decay: underfoot::units::Seconds(0.5),
+            worst: None,
         }
     }
 

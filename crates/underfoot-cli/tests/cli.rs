@@ -37,6 +37,8 @@ fn model(name: &str, strikes: usize) -> MaterialModel {
             method: "hand-built".to_string(),
             strikes,
             fit_seconds: 1.5,
+            longest_decay: underfoot::units::Seconds(0.5),
+            worst: None,
         },
         sources: vec![SourceFile {
             file: format!("{name}.wav"),

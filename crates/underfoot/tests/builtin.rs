@@ -9,6 +9,59 @@ mod common;
 use underfoot::material::build::{BuildConfig, build_material};
 use underfoot::material::builtin::builtin;
 use underfoot::recording::read;
+use underfoot::synthesis::{PreparedMaterial, VoiceConfig};
+use underfoot::units::SampleRate;
+
+/// What is stored is what plays: every built-in keeps within its stored decay limit, so
+/// the voice's own limit (the same 0.5 s by default) changes no mode; the record describes
+/// the stored filter; and the dense check was made.
+#[test]
+fn builtin_filters_are_what_the_voice_plays() {
+    let lib = builtin();
+    assert_eq!(
+        lib.format,
+        underfoot::material::library::FORMAT,
+        "refit the built-ins"
+    );
+    for m in &lib.materials {
+        assert!(
+            m.slowest_decay().0 <= m.fit.longest_decay.0 * (1.0 + 1e-9),
+            "{}: slowest decay {:?} beyond its limit {:?}",
+            m.name,
+            m.slowest_decay(),
+            m.fit.longest_decay
+        );
+        for rate in [SampleRate(44_100), SampleRate(48_000)] {
+            let p = PreparedMaterial::prepare(m, rate, &VoiceConfig::default())
+                .unwrap_or_else(|e| panic!("{}: {e}", m.name));
+            assert_eq!(
+                p.limited_modes, 0,
+                "{} at {rate}: the voice changed modes",
+                m.name
+            );
+        }
+        let sos = m.sos().unwrap();
+        for (f, stored) in m.fit.grid_hz.iter().zip(&m.fit.model) {
+            let now = sos
+                .response(m.sample_rate.omega(underfoot::units::Hz(*f)))
+                .norm();
+            assert!(
+                (now / stored - 1.0).abs() < 1e-9,
+                "{} at {f} Hz: the record is not of the stored filter",
+                m.name
+            );
+        }
+        let worst = m
+            .fit
+            .worst
+            .unwrap_or_else(|| panic!("{}: no dense check", m.name));
+        assert!(
+            worst.db >= 0.0 && worst.db.is_finite(),
+            "{}: {worst:?}",
+            m.name
+        );
+    }
+}
 
 #[test]
 fn builtin_library_covers_the_papers_materials() {

@@ -422,6 +422,8 @@ fn the_limiter_holds_against_a_pathological_filter() {
             method: String::new(),
             strikes: 0,
             fit_seconds: 0.0,
+            longest_decay: underfoot::units::Seconds(0.5),
+            worst: None,
         },
         sources: vec![],
         physical: None,

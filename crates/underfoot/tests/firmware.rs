@@ -361,6 +361,8 @@ fn small_library() -> underfoot::material::Library {
             method: "hand-built".to_string(),
             strikes: 1,
             fit_seconds: 0.0,
+            longest_decay: underfoot::units::Seconds(0.5),
+            worst: None,
         },
         sources: Vec::new(),
         physical: None,

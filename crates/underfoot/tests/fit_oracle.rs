@@ -112,3 +112,86 @@ fn recovers_known_filters_with_a_40_hz_resonance_at_48_khz() {
         );
     }
 }
+
+/// A filter with one resonance of e-fold decay `tau` at `f0` and a broad one at 300 Hz.
+fn ringing(rate: SampleRate, f0: f64, tau: f64) -> Sos {
+    let pole = |f: f64, tau: f64| {
+        Complex64::from_polar((-1.0 / (tau * rate.hz())).exp(), rate.omega(Hz(f)))
+    };
+    Sos::new(vec![
+        Biquad::from_roots(
+            RootPair::Conjugate(Complex64::from_polar(0.7, rate.omega(Hz(f0 * 1.5)))),
+            RootPair::Conjugate(pole(f0, tau)),
+            0.5,
+        ),
+        Biquad::from_roots(
+            RootPair::Conjugate(Complex64::from_polar(0.5, rate.omega(Hz(600.0)))),
+            RootPair::Conjugate(pole(300.0, 0.01)),
+            1.0,
+        ),
+    ])
+}
+
+fn fit_of(truth: &Sos, rate: SampleRate, band: Band) -> underfoot::fit::OrderFit {
+    let freqs = band.log_grid(400);
+    let h = freqs
+        .iter()
+        .map(|&f| truth.response(rate.omega(f)))
+        .collect();
+    let target = Target::from_response(rate, &freqs, h).unwrap();
+    let grid_freqs = band.log_grid(96);
+    let grid = MetricGrid {
+        rate,
+        measured: grid_freqs
+            .iter()
+            .map(|&f| truth.response(rate.omega(f)).norm())
+            .collect(),
+        freqs: grid_freqs,
+    };
+    fit_order(&target, &grid, truth.order(), &FitConfig::default()).unwrap()
+}
+
+/// A resonance that decays within the limit (0.3 s against 0.5 s) is recovered exactly:
+/// the limit is a bound, not a bias.
+#[test]
+fn a_decay_inside_the_limit_is_recovered_exactly() {
+    let rate = SampleRate(2000);
+    let truth = ringing(rate, 40.0, 0.3);
+    let fit = fit_of(&truth, rate, Band::new(10.0, 990.0));
+    let slowest = fit.sos.poles().iter().map(|p| p.norm()).fold(0.0, f64::max);
+    let want = (-1.0 / (0.3 * rate.hz())).exp();
+    assert!((slowest - want).abs() < 1e-7, "{slowest} vs {want}");
+}
+
+/// A resonance that rings far longer than the limit (20 s) is fitted with every pole inside
+/// the limit's radius: the search never leaves it, so nothing is pulled in afterwards.
+#[test]
+fn no_fitted_pole_rings_longer_than_the_limit() {
+    let rate = SampleRate(2000);
+    let cfg = FitConfig::default();
+    let rho = underfoot::fit::decay_radius(rate, cfg.longest_decay);
+    for f0 in [17.5, 40.0, 120.0] {
+        let truth = ringing(rate, f0, 20.0);
+        let fit = fit_of(&truth, rate, Band::new(10.0, 990.0));
+        for p in fit.sos.poles() {
+            assert!(
+                p.norm() < rho,
+                "{f0} Hz: pole {p} of radius {} > {rho}",
+                p.norm()
+            );
+        }
+        // It still finds the resonance, as sharp as the limit allows.
+        let slowest = fit
+            .sos
+            .poles()
+            .into_iter()
+            .max_by(|a, b| a.norm().total_cmp(&b.norm()))
+            .unwrap();
+        let at = slowest.arg().abs() * rate.hz() / std::f64::consts::TAU;
+        assert!(
+            (at - f0).abs() < 0.05 * f0,
+            "{f0} Hz: slowest pole at {at} Hz"
+        );
+        assert!(slowest.norm() > rho.powi(2), "{f0} Hz: {slowest}");
+    }
+}

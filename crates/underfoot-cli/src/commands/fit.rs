@@ -60,6 +60,10 @@ pub struct FitArgs {
     /// Target log-spectral distance of the order search, in dB [default: 0.5].
     #[arg(long, value_name = "DB", value_parser = parse_positive)]
     target_lsd: Option<f64>,
+    /// The longest e-fold decay any pole of the fitted filter may have, in seconds; the
+    /// search never leaves it and the library stores it [default: 0.5].
+    #[arg(long, value_name = "S", value_parser = parse_decay)]
+    longest_decay: Option<f64>,
     /// For CSV recordings: the column holding the signal (header name or 0-based index).
     #[arg(long, value_name = "C", requires = "csv_rate")]
     csv_column: Option<String>,
@@ -109,6 +113,15 @@ fn parse_savgol(s: &str) -> Result<SavgolSetting, String> {
     Ok(SavgolSetting::Fixed { window, polyorder })
 }
 
+fn parse_decay(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(t) if t > 0.0 && t <= 60.0 => Ok(t),
+        _ => Err(format!(
+            "{s:?} is not a decay limit: expected seconds in (0, 60], e.g. 0.5"
+        )),
+    }
+}
+
 fn parse_order(s: &str) -> Result<usize, String> {
     match s.trim().parse::<usize>() {
         Ok(n) if n > 0 => Ok(n),
@@ -150,6 +163,9 @@ impl FitArgs {
         }
         if let Some(sg) = self.savgol {
             cfg.analysis.savgol = sg;
+        }
+        if let Some(t) = self.longest_decay {
+            cfg.fit.longest_decay = underfoot::units::Seconds(t);
         }
         if let Some(t) = self.target_lsd {
             cfg.fit.target_lsd = Decibels(t);

@@ -112,6 +112,56 @@ impl MetricGrid {
     }
 }
 
+/// The worst in-band deviation of a filter from a measured magnitude, found on a dense grid.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct WorstDeviation {
+    /// `max |20 log10(S/M)|` over the dense grid, in dB.
+    pub db: f64,
+    /// Where it is.
+    pub at_hz: f64,
+}
+
+/// Points of the dense check per bin of the measured spectrum.
+pub const DENSE_PER_BIN: usize = 4;
+
+/// The worst deviation of `sos` (running at `rate`) from a measured magnitude given on FFT
+/// bins `0..=N/2` spaced `bin_hz`, over `band`.
+///
+/// The 96-point metric grid is coarse enough for a narrow model peak to fall between its
+/// points. This check evaluates the model at [`DENSE_PER_BIN`] points per bin of the
+/// measurement (the measurement interpolated linearly between its bins), so that any peak
+/// of a filter whose poles decay within the fit's limit (0.5 s: a -3 dB width of at least
+/// `1 / (pi 0.5 s) = 0.64 Hz`, at 0.12 Hz spacing here) is seen within a small fraction of
+/// a decibel.
+#[must_use]
+pub fn worst_deviation(
+    sos: &Sos,
+    rate: SampleRate,
+    magnitude: &[f64],
+    bin_hz: f64,
+    band: crate::units::Band,
+) -> WorstDeviation {
+    let step = bin_hz / DENSE_PER_BIN as f64;
+    let n = ((band.hi.0 - band.lo.0) / step).floor() as usize;
+    let mut worst = WorstDeviation {
+        db: 0.0,
+        at_hz: band.lo.0,
+    };
+    for i in 0..=n {
+        let f = (band.lo.0 + i as f64 * step).min(band.hi.0);
+        let m = crate::fit::target::interpolate_bins(magnitude, bin_hz, f);
+        let s = sos.response(rate.omega(Hz(f))).norm();
+        let d = (20.0 * (s / m).log10()).abs();
+        if !(d <= worst.db) {
+            worst = WorstDeviation { db: d, at_hz: f };
+            if !d.is_finite() {
+                break;
+            }
+        }
+    }
+    worst
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -128,6 +178,50 @@ mod tests {
         let m = [1.0, 2.0, 3.0, 6.0];
         let mean = [3.0; 4];
         assert!((nrmse(&m, &mean) - 1.0).abs() < 1e-15);
+    }
+
+    /// A narrow peak between the 96 points is invisible to the LSD grid and not to the
+    /// dense check.
+    #[test]
+    fn dense_check_sees_a_peak_between_grid_points() {
+        use crate::signal::Biquad;
+        use crate::signal::sos::RootPair;
+        use crate::units::Band;
+        use num_complex::Complex64;
+        let rate = SampleRate(2000);
+        let band = Band::new(20.0, 900.0);
+        let grid = band.log_grid(METRIC_POINTS);
+        // A resonance halfway (in log frequency) between two grid points, 0.5 s decay.
+        let f0 = (grid[40].0 * grid[41].0).sqrt();
+        let r = crate::fit::decay_radius(rate, crate::units::Seconds(0.5));
+        let peak = Complex64::from_polar(r, rate.omega(Hz(f0)));
+        let dip = Complex64::from_polar(r * 0.9, rate.omega(Hz(f0)));
+        let sos = Sos::new(vec![Biquad::from_roots(
+            RootPair::Conjugate(dip),
+            RootPair::Conjugate(peak),
+            1.0,
+        )]);
+        // The "measurement" is flat at the filter's level away from the peak.
+        let bin_hz = 2000.0 / 8192.0;
+        let flat = sos.response(rate.omega(Hz(500.0))).norm();
+        let magnitude = vec![flat; 4097];
+        let on_grid: Vec<f64> = grid
+            .iter()
+            .map(|&f| sos.response(rate.omega(f)).norm())
+            .collect();
+        let worst_on_grid = on_grid
+            .iter()
+            .map(|s| (20.0 * (s / flat).log10()).abs())
+            .fold(0.0, f64::max);
+        let dense = worst_deviation(&sos, rate, &magnitude, bin_hz, band);
+        // The peak stands about (1 - 0.9 r) / (1 - r) = 100, 40 dB, above the flat level;
+        // the nearest grid points sit on its skirts.
+        assert!(dense.db > 35.0, "{dense:?}");
+        assert!(
+            dense.db - worst_on_grid > 10.0,
+            "{worst_on_grid} vs {dense:?}"
+        );
+        assert!((dense.at_hz - f0).abs() < 0.2, "{dense:?} vs {f0}");
     }
 
     #[test]

@@ -23,6 +23,16 @@
 //! the same (the weighting a perceptual fit needs; a linear grid spends most of its points
 //! on the top octave).
 //!
+//! **Decay limit.** No footstep rings for seconds, yet a free fit to a smoothed spectrum
+//! happily parks a pole a hair inside the unit circle to shape the band's low edge. Such a
+//! pole is inaudible on the metric grid and very audible in play (a hum between strikes), so
+//! every search keeps every pole within the radius `rho = exp(-1 / (f_s tau))`, where `tau`
+//! ([`FitConfig::longest_decay`], default 0.5 s, stored with the model) is the longest e-fold
+//! decay allowed: the linear starts are pulled inside it radially, and the refinements
+//! search over a parametrisation whose every point lies inside it
+//! (see [`refine`](refine::refine)). The filter a fit returns is therefore exactly the
+//! filter the voice plays; the voice's own decay limit finds nothing to change.
+//!
 //! **Order.** "Order" is the number of poles `N`, which equals the numerator degree. The
 //! automatic search (see [`fit`]) keeps the lowest order up to a bound whose log-spectral
 //! distance and NRMSE both reach their targets (defaults 0.5 dB, half the 1 dB intensity
@@ -50,7 +60,33 @@ pub use refine::Objective;
 pub use target::Target;
 
 use crate::signal::Sos;
-use crate::units::Decibels;
+use crate::units::{Decibels, SampleRate, Seconds};
+
+/// The largest pole radius of a filter at `rate` whose slowest mode decays by `e` in
+/// `longest`: `exp(-1 / (rate * longest))`. `1.0` (stability only) for a non-positive or
+/// non-finite `longest`.
+#[must_use]
+pub fn decay_radius(rate: SampleRate, longest: Seconds) -> f64 {
+    let r = (-1.0 / (rate.hz() * longest.0)).exp();
+    if longest.0 > 0.0 && r.is_finite() {
+        r
+    } else {
+        1.0
+    }
+}
+
+/// The e-fold decay time of a pole of radius `radius` at `rate` (infinite on or outside the
+/// unit circle).
+#[must_use]
+pub fn decay_time(rate: SampleRate, radius: f64) -> Seconds {
+    if radius >= 1.0 {
+        Seconds(f64::INFINITY)
+    } else if radius <= 0.0 {
+        Seconds(0.0)
+    } else {
+        Seconds(-1.0 / (rate.hz() * radius.ln()))
+    }
+}
 
 /// The largest order a fit accepts.
 pub const MAX_ORDER: usize = 64;
@@ -80,6 +116,9 @@ pub struct FitConfig {
     pub grid_points: usize,
     /// Jacobian evaluations allowed to each refinement.
     pub max_iterations: usize,
+    /// The longest e-fold decay any pole of the fitted filter may have (default 0.5 s,
+    /// a 60 dB decay in 3.5 s).
+    pub longest_decay: Seconds,
 }
 
 impl Default for FitConfig {
@@ -90,6 +129,7 @@ impl Default for FitConfig {
             target_nrmse: 0.1,
             grid_points: 128,
             max_iterations: 60,
+            longest_decay: Seconds(0.5),
         }
     }
 }
@@ -190,10 +230,11 @@ pub fn fit_order(
         grid.evaluate_magnitude(&model)
     });
 
+    let rho = decay_radius(target.rate, cfg.longest_decay);
     let mut starts: Vec<(&'static str, Sos)> = Vec::new();
     if let Some((b, a)) = &levi_ba {
         if let Some(s) = roots::ba_to_sos(b, a) {
-            starts.push(("levi", stabilise(&s)));
+            starts.push(("levi", stabilise(&s, rho)));
         }
     }
     if let Some(Ok((b, a))) = levi_ba
@@ -201,14 +242,15 @@ pub fn fit_order(
         .map(|start| levi::sanathanan_koerner(target, start, 3))
     {
         if let Some(s) = roots::ba_to_sos(&b, &a) {
-            starts.push(("sanathanan-koerner", stabilise(&s)));
+            starts.push(("sanathanan-koerner", stabilise(&s, rho)));
         }
     }
     if let Ok(s) = vector_fit::vector_fit(target, order, 6) {
-        starts.push(("vector-fit", stabilise(&s)));
+        starts.push(("vector-fit", stabilise(&s, rho)));
     }
     let usable = |s: &Sos| {
         s.is_stable()
+            && s.poles().iter().all(|p| p.norm() < rho)
             && s.sections
                 .iter()
                 .all(|q| q.b.iter().chain(&q.a).all(|c| c.is_finite()))
@@ -259,7 +301,7 @@ pub fn fit_order(
         let handles: Vec<_> = to_refine
             .iter()
             .map(|(_, s)| {
-                scope.spawn(move || refine::refine(s, target, objective, cfg.max_iterations))
+                scope.spawn(move || refine::refine(s, target, objective, cfg.max_iterations, rho))
             })
             .collect();
         let chain = ranked.map(|(_, name, start)| -> Result<_, FitError> {
@@ -268,8 +310,9 @@ pub fn fit_order(
                 target,
                 Objective::OutputError,
                 cfg.max_iterations / 2,
+                rho,
             )?;
-            let both = refine::refine(&oe.sos, target, objective, cfg.max_iterations)?;
+            let both = refine::refine(&oe.sos, target, objective, cfg.max_iterations, rho)?;
             Ok((name, oe.sos, both.sos))
         });
         let direct: Vec<_> = handles
@@ -376,18 +419,20 @@ pub fn fit(
 }
 
 /// Reflects the unstable poles of each section into the unit circle, keeping the
-/// magnitude response.
-fn stabilise(sos: &Sos) -> Sos {
+/// magnitude response, and pulls any pole outside `max_radius` in to just inside it
+/// (a linear start's over-long decays; the refinement then re-fits around them).
+fn stabilise(sos: &Sos, max_radius: f64) -> Sos {
     use crate::signal::sos::{Biquad, RootPair};
     let sections = sos
         .sections
         .iter()
         .map(|s| {
-            if s.is_stable() {
+            let poles = s.poles();
+            let inner = max_radius * (1.0 - 1e-9);
+            if s.is_stable() && poles.iter().all(|p| p.norm() <= inner) {
                 return *s;
             }
-            let poles = s.poles();
-            let (fixed, gain) = roots::reflect_unstable(&poles, 1.0 - 1e-9);
+            let (fixed, gain) = roots::reflect_unstable(&poles, inner);
             let pair = if s.a[2] == 0.0 {
                 RootPair::Single(fixed[0].re)
             } else if fixed[0].im.abs() > 0.0 {

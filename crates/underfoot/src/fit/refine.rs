@@ -17,6 +17,14 @@
 //!   (scaled by `1 - 1e-7` so that rounding can never reach the circle), so
 //!   an unconstrained step in `u` can never cross the unit circle. A first-order
 //!   denominator is `1 + tanh(u) z^-1`;
+//! * the search can be held inside a smaller circle `|z| <= rho` (the **decay limit**: a
+//!   pole of radius `rho` decays by `e` in `1 / (f_s ln(1/rho))` seconds, so no filter the
+//!   search visits rings longer than a ground can). `A(z)` has its poles inside `|z| < rho`
+//!   exactly when `A(rho z)`, i.e. `1 + (a_1/rho) z^-1 + (a_2/rho^2) z^-2`, has them inside
+//!   the unit circle, so the same reflection map is applied to the scaled polynomial:
+//!   `a_1 = rho k_1 (1 + k_2)`, `a_2 = rho^2 k_2` (and `a_1 = rho k` for one pole). The
+//!   bound is part of the parametrisation, not a penalty or a clamp after the fact: the
+//!   filter the search returns is the filter that plays;
 //! * numerator coefficients `b_{i0} .. b_{i d_i}` are free (zeros may lie anywhere), up to
 //!   the degree `d_i` each section starts with, so that the order never grows.
 //!
@@ -111,14 +119,16 @@ impl Den {
     }
 }
 
-/// The parameter layout of a cascade: per section, 1-3 numerator and 0-2 denominator values.
+/// The parameter layout of a cascade: per section, 1-3 numerator and 0-2 denominator values,
+/// every pole inside `|z| < rho`.
 struct Layout {
     nums: Vec<usize>,
     dens: Vec<Den>,
+    rho: f64,
 }
 
 impl Layout {
-    fn of(sos: &Sos) -> Self {
+    fn of(sos: &Sos, rho: f64) -> Self {
         let nums = sos
             .sections
             .iter()
@@ -135,6 +145,7 @@ impl Layout {
         Self {
             nums,
             dens: sos.sections.iter().map(Den::of).collect(),
+            rho,
         }
     }
 
@@ -148,11 +159,11 @@ impl Layout {
             p.extend_from_slice(&s.b[..nb]);
             match d {
                 Den::Two => {
-                    let k2 = s.a[2];
-                    p.push(to_u(s.a[1] / (1.0 + k2)));
+                    let k2 = s.a[2] / (self.rho * self.rho);
+                    p.push(to_u(s.a[1] / (self.rho * (1.0 + k2))));
                     p.push(to_u(k2));
                 }
-                Den::One => p.push(to_u(s.a[1])),
+                Den::One => p.push(to_u(s.a[1] / self.rho)),
                 Den::None => {}
             }
         }
@@ -170,11 +181,12 @@ impl Layout {
                 Den::Two => {
                     let (k1, k2) = (to_k(p[i]).0, to_k(p[i + 1]).0);
                     i += 2;
-                    [1.0, k1 * (1.0 + k2), k2]
+                    let rho = self.rho;
+                    [1.0, rho * k1 * (1.0 + k2), rho * rho * k2]
                 }
                 Den::One => {
                     i += 1;
-                    [1.0, to_k(p[i - 1]).0, 0.0]
+                    [1.0, self.rho * to_k(p[i - 1]).0, 0.0]
                 }
                 Den::None => [1.0, 0.0, 0.0],
             };
@@ -243,13 +255,14 @@ fn evaluate(
             match d {
                 Den::Two => {
                     let ((k1, dk1), (k2, dk2)) = (kmap[col], kmap[col + 1]);
+                    let rho = layout.rho;
                     let (da1, da2) = (-z1 * ia, -z2 * ia);
-                    dlog[col] = da1 * dk1 * (1.0 + k2);
-                    dlog[col + 1] = da1 * k1 * dk2 + da2 * dk2;
+                    dlog[col] = da1 * (rho * dk1 * (1.0 + k2));
+                    dlog[col + 1] = da1 * (rho * k1 * dk2) + da2 * (rho * rho * dk2);
                     col += 2;
                 }
                 Den::One => {
-                    dlog[col] = -z1 * ia * kmap[col].1;
+                    dlog[col] = -z1 * ia * (layout.rho * kmap[col].1);
                     col += 1;
                 }
                 Den::None => {}
@@ -337,22 +350,29 @@ pub struct Refined {
     pub steps: usize,
 }
 
-/// Refines a stable cascade for `objective`, for at most `max_iter` Jacobian evaluations.
+/// Refines a stable cascade for `objective`, for at most `max_iter` Jacobian evaluations,
+/// keeping every pole inside `|z| < max_radius` (`1.0`: stability only; see
+/// [`super::decay_radius`] for the decay limit a fit uses).
 ///
 /// The result is never worse than the start.
 ///
 /// # Errors
-/// [`FitError::Unstable`] when the starting cascade is not stable.
+/// [`FitError::Unstable`] when a pole of the starting cascade lies outside `max_radius`,
+/// or `max_radius` is not in `(0, 1]`.
 pub fn refine(
     sos: &Sos,
     target: &Target,
     objective: Objective,
     max_iter: usize,
+    max_radius: f64,
 ) -> Result<Refined, FitError> {
-    if !sos.is_stable() {
+    if !(max_radius > 0.0 && max_radius <= 1.0)
+        || !sos.is_stable()
+        || sos.poles().iter().any(|p| p.norm() >= max_radius)
+    {
         return Err(FitError::Unstable);
     }
-    let layout = Layout::of(sos);
+    let layout = Layout::of(sos, max_radius);
     let np = layout.len();
     let mut p = layout.pack(sos);
     let powers = unit_powers(target);
@@ -402,7 +422,7 @@ pub fn refine(
         }
     }
     let sos = Sos::new(layout.unpack(&p));
-    debug_assert!(sos.is_stable());
+    debug_assert!(sos.poles().iter().all(|z| z.norm() < max_radius));
     Ok(Refined {
         sos,
         cost: c,
@@ -413,7 +433,8 @@ pub fn refine(
 /// The cost of `sos` on `target` for `objective` without refining.
 #[must_use]
 pub fn objective_cost(sos: &Sos, target: &Target, objective: Objective) -> f64 {
-    let layout = Layout::of(sos);
+    // The cost does not depend on the parametrisation: any radius that holds the poles.
+    let layout = Layout::of(sos, 1.0);
     let p = layout.pack(sos);
     cost(&evaluate(
         &layout,
@@ -464,15 +485,18 @@ mod tests {
             },
         ]);
         let t = target_of(&other, rate, &freqs);
-        for obj in [
-            Objective::OutputError,
-            Objective::LogMagnitude,
-            Objective::Balanced {
-                lin_scale: 0.3,
-                log_scale: 0.05,
-            },
-        ] {
-            let layout = Layout::of(&sos);
+        for (rho, obj) in [1.0, 0.95].into_iter().flat_map(|rho| {
+            [
+                Objective::OutputError,
+                Objective::LogMagnitude,
+                Objective::Balanced {
+                    lin_scale: 0.3,
+                    log_scale: 0.05,
+                },
+            ]
+            .map(|o| (rho, o))
+        }) {
+            let layout = Layout::of(&sos, rho);
             let p = layout.pack(&sos);
             let mut jac = DMatrix::zeros(0, 0);
             let zp = unit_powers(&t);
@@ -506,11 +530,20 @@ mod tests {
                 Biquad { b: [1.0, 0.5, 0.2], a: [1.0, 0.3, 0.2] },
                 Biquad { b: [1.0, 0.5, 0.0], a: [1.0, -0.5, 0.0] },
             ]);
-            let layout = Layout::of(&shape);
-            proptest::prop_assert_eq!(layout.len(), u.len());
-            let sos = Sos::new(layout.unpack(&u));
-            proptest::prop_assert!(sos.is_stable(), "{:?}", sos);
-            proptest::prop_assert!(sos.poles().iter().all(|p| p.norm() < 1.0));
+            for rho in [1.0, 0.999, 0.9] {
+                let layout = Layout::of(&shape, rho);
+                proptest::prop_assert_eq!(layout.len(), u.len());
+                let sos = Sos::new(layout.unpack(&u));
+                proptest::prop_assert!(sos.is_stable(), "{:?}", sos);
+                proptest::prop_assert!(sos.poles().iter().all(|p| p.norm() < rho), "{rho}: {:?}", sos.poles());
+                // And back: the packing inverts the unpacking.
+                let again = Sos::new(layout.unpack(&layout.pack(&sos)));
+                for (x, y) in again.sections.iter().zip(&sos.sections) {
+                    for (p, q) in x.a.iter().zip(&y.a) {
+                        proptest::prop_assert!((p - q).abs() < 1e-6, "{rho}: {:?} vs {:?}", x, y);
+                    }
+                }
+            }
         }
     }
 
@@ -539,7 +572,7 @@ mod tests {
                 a: [1.0, 0.1, 0.4],
             },
         ]);
-        let out = refine(&start, &t, Objective::OutputError, 200).unwrap();
+        let out = refine(&start, &t, Objective::OutputError, 200, 1.0).unwrap();
         assert!(out.sos.is_stable());
         for &f in &freqs {
             let (x, y) = (

@@ -3,7 +3,9 @@
 //! recordings -> [`measure`] -> minimum-phase
 //! [`Target`] on a log grid of the band -> [`fit`]
 //! with its order search -> [`MaterialModel`], whose `fit` record holds the measured and
-//! model magnitudes on 96 log-spaced frequencies of the band and both metrics there.
+//! model magnitudes on 96 log-spaced frequencies of the band and both metrics there, the
+//! decay limit the search kept to, and the worst deviation found on a dense grid
+//! ([`worst_deviation`](crate::fit::metrics::worst_deviation)).
 
 use std::time::Instant;
 
@@ -173,6 +175,14 @@ pub fn build_material_with_report(
             method: best.method.clone(),
             strikes: measured.strikes.len(),
             fit_seconds: started.elapsed().as_secs_f64(),
+            longest_decay: cfg.fit.longest_decay,
+            worst: Some(crate::fit::metrics::worst_deviation(
+                &best.sos,
+                a.rate,
+                &measured.magnitude,
+                measured.bin_hz,
+                a.band,
+            )),
         },
         sources: recordings
             .iter()

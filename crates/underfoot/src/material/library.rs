@@ -6,7 +6,7 @@
 //!
 //! ```json
 //! {
-//!   "format": "underfoot.library/1",
+//!   "format": "underfoot.library/2",
 //!   "materials": [
 //!     {
 //!       "name": "gravel",
@@ -21,7 +21,8 @@
 //!       "fit": {
 //!         "grid_hz": [20.0, "..."], "measured": ["..."], "model": ["..."],
 //!         "nrmse": 0.05, "lsd_db": 0.4,
-//!         "method": "vector-fit+gauss-newton(log)", "strikes": 12, "fit_seconds": 3.1
+//!         "method": "vector-fit+gauss-newton(log)", "strikes": 12, "fit_seconds": 3.1,
+//!         "longest_decay_s": 0.5, "worst": { "db": 1.2, "at_hz": 31.5 }
 //!       },
 //!       "sources": [{ "file": "gravel-01.wav", "sha256": "<64 lower-case hex digits>" }]
 //!     }
@@ -31,7 +32,17 @@
 //!
 //! * `format` comes first in meaning: a reader checks it before it looks at anything else,
 //!   so that a file from a newer version is reported as such rather than as a pile of
-//!   field errors. This version reads and writes only [`FORMAT`].
+//!   field errors. This version writes [`FORMAT`] and reads it and [`FORMAT_1`].
+//! * **Decay limit.** `fit.longest_decay_s` is the longest e-fold decay any pole may have;
+//!   the fit searched only inside it, and every load checks it (a pole of radius `r` at
+//!   rate `f_s` decays by `e` in `-1 / (f_s ln r)` seconds). So the filter stored is the
+//!   filter the voice plays: the voice's own limit (the same 0.5 s by default) finds
+//!   nothing to change.
+//! * **Format 1** files were written before the limit was part of the fit, and some hold
+//!   poles that ring for minutes, which the voice always pulled in to 0.5 s when it
+//!   played them. They are read as what they played: each such pole is moved radially to
+//!   the 0.5 s radius, and the record's model magnitude and metrics are recomputed for
+//!   the filter that results. Saving writes format 2.
 //! * `filter.sos` is what runs; `b`/`a` are the same filter expanded, for interchange with
 //!   other tools, and must agree with `sos` (relative tolerance [`BA_TOLERANCE`]).
 //! * `order` is the number of poles: two per section, one per first-order section
@@ -55,10 +66,13 @@ use super::MaterialModel;
 use crate::atomic_file::{AtomicWriteError, write_atomic};
 
 /// The format tag of the library files this version reads and writes.
-pub const FORMAT: &str = "underfoot.library/1";
+pub const FORMAT: &str = "underfoot.library/2";
+
+/// The format before the decay limit was stored; read and upgraded (see the module docs).
+pub const FORMAT_1: &str = "underfoot.library/1";
 
 /// Every format tag this version can read.
-pub const SUPPORTED_FORMATS: &[&str] = &[FORMAT];
+pub const SUPPORTED_FORMATS: &[&str] = &[FORMAT, FORMAT_1];
 
 /// How closely the expanded `b`/`a` must match the expansion of `sos`, relative to the
 /// largest coefficient of each polynomial.
@@ -208,7 +222,7 @@ impl Library {
             Some(serde_json::Value::String(s)) => Some(s.clone()),
             Some(other) => Some(other.to_string()),
         };
-        if found.as_deref() != Some(FORMAT) {
+        if !SUPPORTED_FORMATS.contains(&found.as_deref().unwrap_or_default()) {
             return Err(LibraryError::UnknownFormat {
                 origin: origin.to_string(),
                 found,
@@ -216,7 +230,10 @@ impl Library {
         }
         // Parsed again from the text rather than from `value`: only the text parser knows
         // line and column, which is what a person fixing the file needs.
-        let library: Library = serde_json::from_str(text).map_err(json_error)?;
+        let mut library: Library = serde_json::from_str(text).map_err(json_error)?;
+        if library.format == FORMAT_1 {
+            library.upgrade_from_1();
+        }
         library.validate_as(origin)?;
         Ok(library)
     }
@@ -332,6 +349,35 @@ impl Library {
         self.validate_as("library")
     }
 
+    /// Format 1 to 2: pull every pole beyond the legacy 0.5 s decay in to it, as the voice
+    /// did when it played the file, and describe the resulting filter in the record.
+    fn upgrade_from_1(&mut self) {
+        for m in &mut self.materials {
+            m.fit.longest_decay = super::model::LEGACY_DECAY;
+            let Some(sos) = m.sos() else { continue };
+            let rho = crate::fit::decay_radius(m.sample_rate, m.fit.longest_decay);
+            let Some(limited) = limit_radius(&sos, rho) else {
+                continue;
+            };
+            m.filter = super::FilterCoefficients::from_sos(&limited);
+            m.fit.model = m
+                .fit
+                .grid_hz
+                .iter()
+                .map(|&f| {
+                    limited
+                        .response(m.sample_rate.omega(crate::units::Hz(f)))
+                        .norm()
+                })
+                .collect();
+            m.fit.nrmse = crate::fit::metrics::nrmse(&m.fit.measured, &m.fit.model);
+            m.fit.lsd_db = crate::fit::metrics::lsd_db(&m.fit.measured, &m.fit.model);
+            m.fit.worst = None;
+            m.fit.method = format!("{} + decay-limited on upgrade from format 1", m.fit.method);
+        }
+        self.format = FORMAT.to_string();
+    }
+
     fn validate_as(&self, origin: &str) -> Result<(), LibraryError> {
         if self.format != FORMAT {
             return Err(LibraryError::UnknownFormat {
@@ -395,6 +441,27 @@ pub fn validate_model(m: &MaterialModel) -> Result<(), String> {
             sos.order(),
             sos.sections.len()
         ));
+    }
+    let limit = m.fit.longest_decay;
+    if !(limit.0 > 0.0 && limit.0 <= 60.0) {
+        return Err(format!(
+            "fit.longest_decay_s = {} must be in (0, 60] s",
+            limit.0
+        ));
+    }
+    // The coefficients round-trip exactly through JSON; the slack is for a file written by
+    // another tool.
+    let rho = crate::fit::decay_radius(m.sample_rate, limit);
+    for (i, s) in sos.sections.iter().enumerate() {
+        if let Some(p) = s.poles().iter().find(|p| p.norm() > rho * (1.0 + 1e-12)) {
+            return Err(format!(
+                "filter.sos[{i}] has a pole at {:.1} Hz that decays by e in {:.3} s, longer than \
+                 the model's limit fit.longest_decay_s = {} s (refit it)",
+                p.arg().abs() * m.sample_rate.hz() / std::f64::consts::TAU,
+                crate::fit::decay_time(m.sample_rate, p.norm()).0,
+                limit.0
+            ));
+        }
     }
     let (b, a) = sos.to_ba();
     check_expanded("filter.b", &m.filter.b, &b)?;
@@ -468,6 +535,41 @@ fn validate_sections(rows: &[[f64; 6]]) -> Result<crate::signal::Sos, String> {
         sections.push(s);
     }
     Ok(crate::signal::Sos::new(sections))
+}
+
+/// `sos` with every pole beyond `rho` moved radially onto it (numerators kept), or `None`
+/// when no pole lies beyond it.
+fn limit_radius(sos: &crate::signal::Sos, rho: f64) -> Option<crate::signal::Sos> {
+    use crate::signal::Biquad;
+    let mut changed = false;
+    let sections = sos
+        .sections
+        .iter()
+        .map(|s| {
+            let [p, q] = s.poles();
+            if p.norm() <= rho && q.norm() <= rho {
+                return *s;
+            }
+            changed = true;
+            let pull = |z: num_complex::Complex64| {
+                if z.norm() > rho {
+                    z * (rho / z.norm())
+                } else {
+                    z
+                }
+            };
+            let (p, q) = (pull(p), pull(q));
+            // The monic quadratic with roots p, q (real coefficients: a conjugate pair or two
+            // real poles); a first-order section's one pole is -a1.
+            let a = if s.a[2] == 0.0 {
+                [1.0, s.a[1].clamp(-rho, rho), 0.0]
+            } else {
+                [1.0, -(p + q).re, (p * q).re]
+            };
+            Biquad { b: s.b, a }
+        })
+        .collect();
+    changed.then(|| crate::signal::Sos::new(sections))
 }
 
 fn check_expanded(field: &str, stored: &[f64], expected: &[f64]) -> Result<(), String> {
@@ -580,6 +682,8 @@ mod tests {
                 method: "hand".to_string(),
                 strikes: 3,
                 fit_seconds: 0.5,
+                longest_decay: crate::units::Seconds(0.5),
+                worst: None,
             },
             sources: vec![SourceFile {
                 file: "a.wav".to_string(),
@@ -641,16 +745,90 @@ mod tests {
         }
     }
 
+    /// `model` with its section's poles moved to radius `r` (same angle), record updated.
+    fn ringing(name: &str, r: f64) -> MaterialModel {
+        let mut m = model(name);
+        let w: f64 = 0.3;
+        let sos = Sos::new(vec![Biquad {
+            b: [0.1, 0.0, -0.1],
+            a: [1.0, -2.0 * r * w.cos(), r * r],
+        }]);
+        m.filter = FilterCoefficients::from_sos(&sos);
+        m.fit.model = m
+            .fit
+            .grid_hz
+            .iter()
+            .map(|&f| {
+                sos.response(m.sample_rate.omega(crate::units::Hz(f)))
+                    .norm()
+            })
+            .collect();
+        m.fit.measured = m.fit.model.clone();
+        m
+    }
+
+    /// A pole that rings longer than the stored limit is refused on load, naming the
+    /// section, the decay and the limit.
+    #[test]
+    fn a_pole_beyond_the_decay_limit_is_refused() {
+        let slow = ringing("slow", 0.999_99); // 50 s at 2 kHz
+        let reason = invalid_reason(slow);
+        assert!(
+            reason.contains("filter.sos[0]") && reason.contains("longest_decay_s = 0.5"),
+            "{reason}"
+        );
+        // Just inside it is fine.
+        let rho = crate::fit::decay_radius(SampleRate(2000), crate::units::Seconds(0.5));
+        let lib = Library {
+            format: FORMAT.to_string(),
+            materials: vec![ringing("edge", rho * (1.0 - 1e-12))],
+        };
+        Library::from_json(&lib.to_json(), "edge").unwrap();
+    }
+
+    /// A format-1 file is read as what it played: its slow pole pulled in to the 0.5 s
+    /// radius, the record recomputed for that filter, and written back as format 2.
+    #[test]
+    fn format_1_is_upgraded_to_what_the_voice_played() {
+        let old = Library {
+            format: FORMAT_1.to_string(),
+            materials: vec![ringing("old", 0.999_99), model("fine")],
+        };
+        let mut value: serde_json::Value = serde_json::from_str(&old.to_json()).unwrap();
+        for m in value["materials"].as_array_mut().unwrap() {
+            m["fit"].as_object_mut().unwrap().remove("longest_decay_s");
+        }
+        let text = value.to_string();
+        assert!(!text.contains("longest_decay_s"), "{text}");
+        let lib = Library::from_json(&text, "old.json").unwrap();
+        assert_eq!(lib.format, FORMAT);
+        let m = lib.get("old").unwrap();
+        let rho = crate::fit::decay_radius(SampleRate(2000), crate::units::Seconds(0.5));
+        let radius = m.sos().unwrap().poles()[0].norm();
+        assert!((radius - rho).abs() < 1e-12, "{radius} vs {rho}");
+        assert!(m.fit.lsd_db > 0.0 && m.fit.method.contains("format 1"));
+        let sos = m.sos().unwrap();
+        for (f, v) in m.fit.grid_hz.iter().zip(&m.fit.model) {
+            let now = sos
+                .response(m.sample_rate.omega(crate::units::Hz(*f)))
+                .norm();
+            assert!((now / v - 1.0).abs() < 1e-12);
+        }
+        // The model that was inside the limit is untouched.
+        assert_eq!(lib.get("fine").unwrap(), &model("fine"));
+        assert!(lib.to_json().contains(FORMAT));
+    }
+
     #[test]
     fn unknown_or_missing_format_is_reported_with_supported_versions() {
-        let v2 = r#"{"format": "underfoot.library/2", "materials": [{"whatever": 1}]}"#;
-        let e = Library::from_json(v2, "new.json").expect_err("v2");
+        let v3 = r#"{"format": "underfoot.library/3", "materials": [{"whatever": 1}]}"#;
+        let e = Library::from_json(v3, "new.json").expect_err("v3");
         assert!(
-            matches!(&e, LibraryError::UnknownFormat { found: Some(f), .. } if f == "underfoot.library/2")
+            matches!(&e, LibraryError::UnknownFormat { found: Some(f), .. } if f == "underfoot.library/3")
         );
         let msg = e.to_string();
         assert!(
-            msg.contains("underfoot.library/2") && msg.contains(FORMAT),
+            msg.contains("underfoot.library/3") && msg.contains(FORMAT),
             "{msg}"
         );
 

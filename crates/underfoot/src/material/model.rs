@@ -2,8 +2,9 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::fit::metrics::WorstDeviation;
 use crate::signal::{Biquad, Sos};
-use crate::units::{Band, SampleRate};
+use crate::units::{Band, SampleRate, Seconds};
 
 /// A fitted ground material, as stored in a library file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -84,6 +85,22 @@ pub struct FitRecord {
     /// Wall-clock time of the fit, order search included, in seconds.
     #[serde(default)]
     pub fit_seconds: f64,
+    /// The longest e-fold decay any pole of the filter may have: the fit searched only
+    /// inside it, so the voice plays the filter as stored. Files of format 1 lack it and
+    /// are read as 0.5 s, the limit their voice applied (see [`super::library`]).
+    #[serde(rename = "longest_decay_s", default = "legacy_decay")]
+    pub longest_decay: Seconds,
+    /// The worst deviation of the model from the measured response in the band, on a dense
+    /// grid ([`crate::fit::metrics::worst_deviation`]); absent in files of format 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub worst: Option<WorstDeviation>,
+}
+
+/// The decay limit the voice applied to every model before it was stored with the model.
+pub const LEGACY_DECAY: Seconds = Seconds(0.5);
+
+fn legacy_decay() -> Seconds {
+    LEGACY_DECAY
 }
 
 /// One recording a model was fitted from.
@@ -103,5 +120,14 @@ impl MaterialModel {
     #[must_use]
     pub fn sos(&self) -> Option<Sos> {
         self.filter.to_sos()
+    }
+
+    /// The slowest e-fold decay among the filter's poles (infinite for a malformed filter).
+    #[must_use]
+    pub fn slowest_decay(&self) -> Seconds {
+        let radius = self.sos().map_or(f64::INFINITY, |s| {
+            s.poles().iter().map(|p| p.norm()).fold(0.0, f64::max)
+        });
+        crate::fit::decay_time(self.sample_rate, radius)
     }
 }

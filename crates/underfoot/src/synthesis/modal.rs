@@ -372,7 +372,7 @@ impl ModalFilter {
     /// hours); under a foot, no ground rings that long, and the actuator must not either.
     /// Returns how many modes were changed.
     pub fn limit_decay(&mut self, longest: Seconds) -> usize {
-        let max_radius = (-1.0 / (self.rate.hz() * longest.0)).exp();
+        let max_radius = crate::fit::decay_radius(self.rate, longest);
         let mut changed = 0;
         for m in &mut self.modes {
             let r = m.pole.norm();
