@@ -227,41 +227,153 @@ impl AnalysisConfig {
     }
 }
 
-/// The samples of one recording after steps 1-3, at the analysis rate.
-///
-/// # Errors
-/// [`AnalysisError::Conditioning`] when a step cannot run on this recording (too short).
-pub fn condition(rec: &Recording, cfg: &AnalysisConfig) -> Result<Vec<f64>, AnalysisError> {
-    condition_with(rec, cfg, &cfg.prepare()?)
+/// Below this fraction of its level, the trend filter's ringing counts as died out.
+const SETTLE_LEVEL: f64 = 1e-9;
+
+/// The trend filter's ringing is followed for at most this long (a filter with a pole on
+/// the unit circle never settles; the band's checks keep that from happening).
+const MAX_SETTLE: Seconds = Seconds(60.0);
+
+/// Which steps of the chain a recording goes through.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Chain {
+    /// Steps 0-3: offset, smoother, resampler, trend filter.
+    Conditioned,
+    /// The resampler alone: the reference of [`raw_response`].
+    Raw,
 }
 
-fn condition_with(
+/// One recording on its zero extension at the analysis rate: the recording's first sample
+/// is at `x[lead]` and it spans `span` samples; everything else is what the chain made of
+/// the silence around it.
+struct Extended {
+    x: Vec<f64>,
+    lead: usize,
+    span: usize,
+}
+
+impl Extended {
+    /// The part of `x` the recording itself spans.
+    fn recording(&self) -> &[f64] {
+        &self.x[self.lead..self.lead + self.span]
+    }
+}
+
+/// The samples of one recording after steps 0-3, at the analysis rate, over the span of
+/// the recording (sample `n` at time `n / rate` from its start).
+///
+/// They are the samples of the linear, time-invariant chain run on the recording embedded
+/// in silence (see the module docs), so they do not depend on how the recording was cut.
+///
+/// # Errors
+/// [`AnalysisError::Conditioning`] when a step cannot run on this recording (empty).
+pub fn condition(rec: &Recording, cfg: &AnalysisConfig) -> Result<Vec<f64>, AnalysisError> {
+    let trend = cfg.prepare()?;
+    let ext = extend(rec, cfg, &trend, Chain::Conditioned)?;
+    Ok(ext.recording().to_vec())
+}
+
+/// The median of `x` (the mean of the two middle values for an even length).
+fn median(x: &[f64]) -> f64 {
+    let mut v = x.to_vec();
+    let mid = v.len() / 2;
+    let (below, m, _) = v.select_nth_unstable_by(mid, f64::total_cmp);
+    let upper = *m;
+    if x.len() % 2 == 0 {
+        let lower = below.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        0.5 * (lower + upper)
+    } else {
+        upper
+    }
+}
+
+/// Samples for the trend filter's ringing to fall to [`SETTLE_LEVEL`]:
+/// `ceil(ln(level) / ln(r))` for the largest pole radius `r`.
+fn settle_samples(trend: &Sos, rate: SampleRate) -> usize {
+    let cap = rate.samples_in(MAX_SETTLE);
+    let r = trend.poles().iter().map(|p| p.norm()).fold(0.0, f64::max);
+    if !(r < 1.0) {
+        return cap;
+    }
+    if r <= 0.0 {
+        return 1;
+    }
+    let n = (SETTLE_LEVEL.ln() / r.ln()).ceil();
+    if n.is_finite() {
+        (n as usize).clamp(1, cap)
+    } else {
+        cap
+    }
+}
+
+/// Steps 0-3 (or the resampler alone) on the recording extended with zeros, far enough
+/// that every filter starts and ends in silence; both chains lay the result out alike.
+fn extend(
     rec: &Recording,
     cfg: &AnalysisConfig,
     trend: &Sos,
-) -> Result<Vec<f64>, AnalysisError> {
+    chain: Chain,
+) -> Result<Extended, AnalysisError> {
     let wrap = |source| AnalysisError::Conditioning {
         name: rec.name.clone(),
         source,
     };
+    if rec.samples.is_empty() {
+        return Err(wrap(SignalError::TooShort {
+            len: 0,
+            needed: 1,
+            what: "conditioning",
+        }));
+    }
     let smoother = match cfg.savgol {
         SavgolSetting::Auto { polyorder } => {
             SavitzkyGolay::widest_within(rec.rate, cfg.band.hi, Decibels(0.1), polyorder, 257)
-                .filter(|sg| sg.window() <= rec.samples.len())
         }
         SavgolSetting::Fixed { window, polyorder } => {
             Some(SavitzkyGolay::new(window, polyorder).map_err(wrap)?)
         }
         SavgolSetting::Off => None,
     };
-    let smoothed = match &smoother {
-        Some(sg) => sg.apply(&rec.samples).map_err(wrap)?,
-        None => rec.samples.clone(),
+    let resampler = Resampler::new(rec.rate, cfg.rate).map_err(wrap)?;
+    let (up, down) = resampler.ratio();
+
+    // At the recording's rate, zeros enough for the smoother's edge fits to see only zeros
+    // and for the resampler to output all of its ringing, rounded up to whole periods of
+    // the rate ratio so that the recording's first sample stays on the analysis grid.
+    let fir = smoother.as_ref().map_or(0, SavitzkyGolay::window) + resampler.reach() + 1;
+    let (up, down) = (up as usize, down as usize);
+    let pad_in = fir.div_ceil(down) * down;
+    let offset = match chain {
+        Chain::Conditioned => median(&rec.samples),
+        Chain::Raw => 0.0,
     };
-    let resampled = Resampler::new(rec.rate, cfg.rate)
-        .map_err(wrap)?
-        .process(&smoothed);
-    filtfilt(trend, &resampled).map_err(wrap)
+    let mut input = vec![0.0; pad_in];
+    input.extend(rec.samples.iter().map(|v| v - offset));
+    input.resize(input.len() + pad_in, 0.0);
+    let smoothed = match (&smoother, chain) {
+        (Some(sg), Chain::Conditioned) => sg.apply(&input).map_err(wrap)?,
+        _ => input,
+    };
+    let resampled = resampler.process(&smoothed);
+
+    // At the analysis rate, what the FIR steps leave is exactly zero, so the rest of the
+    // silence is added there, where it is cheap: long enough for the trend filter's
+    // ringing to die out at both ends, plus a whole strike window, so that a window
+    // starting anywhere in the recording runs its full length.
+    let tail = settle_samples(trend, cfg.rate)
+        + cfg.rate.samples_in(cfg.strike_length).max(8)
+        + cfg.rate.samples_in(cfg.pre_onset);
+    let mut x = vec![0.0; tail];
+    x.extend_from_slice(&resampled);
+    x.resize(x.len() + tail, 0.0);
+    if chain == Chain::Conditioned {
+        x = filtfilt(trend, &x).map_err(wrap)?;
+    }
+    Ok(Extended {
+        x,
+        lead: tail + pad_in * up / down,
+        span: resampler.output_len(rec.samples.len()),
+    })
 }
 
 /// The measured response of the strikes in `recordings`.
@@ -272,6 +384,28 @@ fn condition_with(
 pub fn measure(
     recordings: &[Recording],
     cfg: &AnalysisConfig,
+) -> Result<MeasuredResponse, AnalysisError> {
+    analyse(recordings, cfg, Chain::Conditioned)
+}
+
+/// The reference the conditioning is checked against: the magnitude spectrum of the same
+/// strikes as [`measure`] finds (same onsets, same windows), averaged and smoothed the same
+/// way, but of the recordings only resampled to the analysis rate, with no offset removal,
+/// no smoother and no trend filter.
+///
+/// # Errors
+/// As [`measure`].
+pub fn raw_response(
+    recordings: &[Recording],
+    cfg: &AnalysisConfig,
+) -> Result<MeasuredResponse, AnalysisError> {
+    analyse(recordings, cfg, Chain::Raw)
+}
+
+fn analyse(
+    recordings: &[Recording],
+    cfg: &AnalysisConfig,
+    chain: Chain,
 ) -> Result<MeasuredResponse, AnalysisError> {
     let trend = cfg.prepare()?;
     if recordings.is_empty() {
@@ -285,9 +419,20 @@ pub fn measure(
     let mut power = vec![0.0; n_fft / 2 + 1];
     let mut strikes = Vec::new();
     for (index, rec) in recordings.iter().enumerate() {
-        let x = condition_with(rec, cfg, &trend)?;
-        let onsets = find_onsets(&x, cfg.rate, &cfg.onsets);
+        let conditioned = extend(rec, cfg, &trend, Chain::Conditioned)?;
+        // Strikes are looked for in the recording only: the silence around it is not the
+        // recording's noise, and would make a file of noise alone look like strikes.
+        let onsets: Vec<usize> = find_onsets(conditioned.recording(), cfg.rate, &cfg.onsets)
+            .into_iter()
+            .map(|n| n + conditioned.lead)
+            .collect();
+        let source = match chain {
+            Chain::Conditioned => conditioned,
+            Chain::Raw => extend(rec, cfg, &trend, Chain::Raw)?,
+        };
+        let x = &source.x;
         for (i, &onset) in onsets.iter().enumerate() {
+            // The window may reach into the silence before and after the recording.
             let start = onset.saturating_sub(pre);
             let next = onsets
                 .get(i + 1)
@@ -307,7 +452,7 @@ pub fn measure(
             }
             strikes.push(StrikeSource {
                 recording: index,
-                onset: cfg.rate.duration_of(onset),
+                onset: cfg.rate.duration_of(onset - source.lead),
             });
         }
     }
