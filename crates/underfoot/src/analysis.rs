@@ -273,20 +273,6 @@ pub fn condition(rec: &Recording, cfg: &AnalysisConfig) -> Result<Vec<f64>, Anal
     Ok(ext.recording().to_vec())
 }
 
-/// The median of `x` (the mean of the two middle values for an even length).
-fn median(x: &[f64]) -> f64 {
-    let mut v = x.to_vec();
-    let mid = v.len() / 2;
-    let (below, m, _) = v.select_nth_unstable_by(mid, f64::total_cmp);
-    let upper = *m;
-    if x.len() % 2 == 0 {
-        let lower = below.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        0.5 * (lower + upper)
-    } else {
-        upper
-    }
-}
-
 /// Samples for the trend filter's ringing to fall to [`SETTLE_LEVEL`]:
 /// `ceil(ln(level) / ln(r))` for the largest pole radius `r`.
 fn settle_samples(trend: &Sos, rate: SampleRate) -> usize {
@@ -344,7 +330,7 @@ fn extend(
     let (up, down) = (up as usize, down as usize);
     let pad_in = fir.div_ceil(down) * down;
     let offset = match chain {
-        Chain::Conditioned => median(&rec.samples),
+        Chain::Conditioned => rec.samples.iter().sum::<f64>() / rec.samples.len() as f64,
         Chain::Raw => 0.0,
     };
     let mut input = vec![0.0; pad_in];
@@ -420,12 +406,15 @@ fn analyse(
     let mut strikes = Vec::new();
     for (index, rec) in recordings.iter().enumerate() {
         let conditioned = extend(rec, cfg, &trend, Chain::Conditioned)?;
-        // Strikes are looked for in the recording only: the silence around it is not the
-        // recording's noise, and would make a file of noise alone look like strikes.
-        let onsets: Vec<usize> = find_onsets(conditioned.recording(), cfg.rate, &cfg.onsets)
-            .into_iter()
-            .map(|n| n + conditioned.lead)
-            .collect();
+        // Strikes are looked for in the recording embedded in its silence, so that the
+        // detector sees the same signal however tightly the recording was cut; but a
+        // recording whose own samples hold nothing standing above their noise (noise
+        // alone, which the silence would make look loud) has none.
+        let onsets = if find_onsets(conditioned.recording(), cfg.rate, &cfg.onsets).is_empty() {
+            Vec::new()
+        } else {
+            find_onsets(&conditioned.x, cfg.rate, &cfg.onsets)
+        };
         let source = match chain {
             Chain::Conditioned => conditioned,
             Chain::Raw => extend(rec, cfg, &trend, Chain::Raw)?,
@@ -452,7 +441,7 @@ fn analyse(
             }
             strikes.push(StrikeSource {
                 recording: index,
-                onset: cfg.rate.duration_of(onset - source.lead),
+                onset: cfg.rate.duration_of(onset.saturating_sub(source.lead)),
             });
         }
     }
