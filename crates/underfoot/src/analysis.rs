@@ -24,6 +24,57 @@
 //!    filter whose impulse response is the strike.
 //! 6. **Smooth** in fractional-octave bands (1/6 octave by default, finer than the
 //!    vibrotactile frequency JND, so no detail a person could feel is lost).
+//!
+//! # A recording embedded in silence
+//!
+//! Steps 1-3 are linear and time-invariant in the interior of a signal, but each has its own
+//! edge rule: the smoother fits polynomials to the first and last windows, the resampler's
+//! output stops at the recording's ends (cutting its own pre- and post-ringing), and the
+//! forward-backward trend filter reflects the signal through its end samples (scipy's odd
+//! extension) and starts from the steady state of the first sample. The shared clips start
+//! 3-4 ms before the strike, so these rules act on the strike itself: the odd extension
+//! mirrors it into a second, inverted strike before the start, and the 10 Hz high-pass
+//! turns the join into a slow transient. That invented 20-27 dB of low end (the measured
+//! `hard` was -14 dB re its peak at 20 Hz against -41 dB in its raw spectrum), and it
+//! changed with how much quiet the clip happened to hold.
+//!
+//! So every recording `x[0..L)` is conditioned as the signal `x̃` that is `x` on `[0, L)`
+//! and zero elsewhere, which is what the chain would see of the same strikes recorded with
+//! silence around them. Only finitely many zeros are needed for the result to equal the
+//! LTI chain's on `x̃` to within `SETTLE_LEVEL` (1e-9) of the signal:
+//!
+//! * at the recording's rate, `w + R + 1` zeros, rounded up to a multiple of `M`, at each
+//!   end, for a smoother of `w` taps and a resampler reaching `R` input samples
+//!   ([`Resampler::reach`]): the smoother's edge fits then see only zeros (and output
+//!   zeros), and the resampler outputs all of its ringing. Whole periods `M` of the rate
+//!   ratio `L/M` keep the recording's first sample on the analysis grid (at output
+//!   sample `pad · L / M`).
+//! * at the analysis rate, where it is cheap, `n_s + strike + pre` more zeros at each end,
+//!   with `n_s = ⌈ln(1e-9) / ln r⌉` for the trend filter's largest pole radius `r` (0.86 s
+//!   for the default 10 Hz high-pass at 2 kHz). The forward pass's ringing has then died
+//!   out before the end of the buffer, so the odd extension and the steady-state start of
+//!   [`filtfilt`] act on zeros and do nothing; the backward pass's ringing ahead of the
+//!   recording is kept. A strike window starting anywhere in the recording runs its full
+//!   length into the silence after it, as it would in a longer recording.
+//!
+//! Strikes are detected on this extended signal too (so the detector sees the same signal
+//! however the clip was cut), but only in a recording whose own span has a strike above its
+//! own noise: the silence around a recording of noise alone would make that noise look loud.
+//! Windows may start before the recording's first sample; a strike's reported onset is
+//! clamped to 0 then.
+//!
+//! **No offset is removed.** A recording is taken as the deviation from rest, as AC-coupled
+//! sensors (and the shared recordings, whose means are within 3·10⁻³ of zero, most within
+//! 5·10⁻⁵) give it. No estimate of an offset is independent of the cut: the mean of a clip
+//! includes the strike's own DC content divided by the clip's length (removing it moved a
+//! synthetic strike's response by 0.7 dB when padded), and the median of a clip that is all
+//! strike is far from its offset (4.7·10⁻³ on a shared `ice` clip of mean 2·10⁻⁵). A real
+//! offset `d` becomes a rectangle of height `d` under the strikes, whose two edges ring
+//! through the trend filter; remove it before analysis when it is not small against the
+//! strikes' low end.
+//!
+//! [`raw_response`] is the reference the chain is checked against: the same strikes (same
+//! onsets, same windows) of the recordings only resampled, averaged and smoothed alike.
 
 use crate::fit::target::interpolate_bins;
 use crate::recording::Recording;
@@ -237,7 +288,7 @@ const MAX_SETTLE: Seconds = Seconds(60.0);
 /// Which steps of the chain a recording goes through.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Chain {
-    /// Steps 0-3: offset, smoother, resampler, trend filter.
+    /// Steps 1-3: smoother, resampler, trend filter.
     Conditioned,
     /// The resampler alone: the reference of [`raw_response`].
     Raw,
@@ -259,7 +310,7 @@ impl Extended {
     }
 }
 
-/// The samples of one recording after steps 0-3, at the analysis rate, over the span of
+/// The samples of one recording after steps 1-3, at the analysis rate, over the span of
 /// the recording (sample `n` at time `n / rate` from its start).
 ///
 /// They are the samples of the linear, time-invariant chain run on the recording embedded
@@ -292,7 +343,7 @@ fn settle_samples(trend: &Sos, rate: SampleRate) -> usize {
     }
 }
 
-/// Steps 0-3 (or the resampler alone) on the recording extended with zeros, far enough
+/// Steps 1-3 (or the resampler alone) on the recording extended with zeros, far enough
 /// that every filter starts and ends in silence; both chains lay the result out alike.
 fn extend(
     rec: &Recording,
@@ -329,12 +380,8 @@ fn extend(
     let fir = smoother.as_ref().map_or(0, SavitzkyGolay::window) + resampler.reach() + 1;
     let (up, down) = (up as usize, down as usize);
     let pad_in = fir.div_ceil(down) * down;
-    let offset = match chain {
-        Chain::Conditioned => rec.samples.iter().sum::<f64>() / rec.samples.len() as f64,
-        Chain::Raw => 0.0,
-    };
     let mut input = vec![0.0; pad_in];
-    input.extend(rec.samples.iter().map(|v| v - offset));
+    input.extend_from_slice(&rec.samples);
     input.resize(input.len() + pad_in, 0.0);
     let smoothed = match (&smoother, chain) {
         (Some(sg), Chain::Conditioned) => sg.apply(&input).map_err(wrap)?,
@@ -376,8 +423,8 @@ pub fn measure(
 
 /// The reference the conditioning is checked against: the magnitude spectrum of the same
 /// strikes as [`measure`] finds (same onsets, same windows), averaged and smoothed the same
-/// way, but of the recordings only resampled to the analysis rate, with no offset removal,
-/// no smoother and no trend filter.
+/// way, but of the recordings only resampled to the analysis rate, with no smoother and no
+/// trend filter.
 ///
 /// # Errors
 /// As [`measure`].
