@@ -329,7 +329,7 @@ pub fn condition(rec: &Recording, cfg: &AnalysisConfig) -> Result<Vec<f64>, Anal
 fn settle_samples(trend: &Sos, rate: SampleRate) -> usize {
     let cap = rate.samples_in(MAX_SETTLE);
     let r = trend.poles().iter().map(|p| p.norm()).fold(0.0, f64::max);
-    if !(r < 1.0) {
+    if r.is_nan() || r >= 1.0 {
         return cap;
     }
     if r <= 0.0 {
