@@ -24,6 +24,57 @@
 //!    filter whose impulse response is the strike.
 //! 6. **Smooth** in fractional-octave bands (1/6 octave by default, finer than the
 //!    vibrotactile frequency JND, so no detail a person could feel is lost).
+//!
+//! # A recording embedded in silence
+//!
+//! Steps 1-3 are linear and time-invariant in the interior of a signal, but each has its own
+//! edge rule: the smoother fits polynomials to the first and last windows, the resampler's
+//! output stops at the recording's ends (cutting its own pre- and post-ringing), and the
+//! forward-backward trend filter reflects the signal through its end samples (scipy's odd
+//! extension) and starts from the steady state of the first sample. The shared clips start
+//! 3-4 ms before the strike, so these rules act on the strike itself: the odd extension
+//! mirrors it into a second, inverted strike before the start, and the 10 Hz high-pass
+//! turns the join into a slow transient. That invented 20-27 dB of low end (the measured
+//! `hard` was -14 dB re its peak at 20 Hz against -41 dB in its raw spectrum), and it
+//! changed with how much quiet the clip happened to hold.
+//!
+//! So every recording `x[0..L)` is conditioned as the signal `x̃` that is `x` on `[0, L)`
+//! and zero elsewhere, which is what the chain would see of the same strikes recorded with
+//! silence around them. Only finitely many zeros are needed for the result to equal the
+//! LTI chain's on `x̃` to within `SETTLE_LEVEL` (1e-9) of the signal:
+//!
+//! * at the recording's rate, `w + R + 1` zeros, rounded up to a multiple of `M`, at each
+//!   end, for a smoother of `w` taps and a resampler reaching `R` input samples
+//!   ([`Resampler::reach`]): the smoother's edge fits then see only zeros (and output
+//!   zeros), and the resampler outputs all of its ringing. Whole periods `M` of the rate
+//!   ratio `L/M` keep the recording's first sample on the analysis grid (at output
+//!   sample `pad · L / M`).
+//! * at the analysis rate, where it is cheap, `n_s + strike + pre` more zeros at each end,
+//!   with `n_s = ⌈ln(1e-9) / ln r⌉` for the trend filter's largest pole radius `r` (0.86 s
+//!   for the default 10 Hz high-pass at 2 kHz). The forward pass's ringing has then died
+//!   out before the end of the buffer, so the odd extension and the steady-state start of
+//!   [`filtfilt`] act on zeros and do nothing; the backward pass's ringing ahead of the
+//!   recording is kept. A strike window starting anywhere in the recording runs its full
+//!   length into the silence after it, as it would in a longer recording.
+//!
+//! Strikes are detected on this extended signal too (so the detector sees the same signal
+//! however the clip was cut), but only in a recording whose own span has a strike above its
+//! own noise: the silence around a recording of noise alone would make that noise look loud.
+//! Windows may start before the recording's first sample; a strike's reported onset is
+//! clamped to 0 then.
+//!
+//! **No offset is removed.** A recording is taken as the deviation from rest, as AC-coupled
+//! sensors (and the shared recordings, whose means are within 3·10⁻³ of zero, most within
+//! 5·10⁻⁵) give it. No estimate of an offset is independent of the cut: the mean of a clip
+//! includes the strike's own DC content divided by the clip's length (removing it moved a
+//! synthetic strike's response by 0.7 dB when padded), and the median of a clip that is all
+//! strike is far from its offset (4.7·10⁻³ on a shared `ice` clip of mean 2·10⁻⁵). A real
+//! offset `d` becomes a rectangle of height `d` under the strikes, whose two edges ring
+//! through the trend filter; remove it before analysis when it is not small against the
+//! strikes' low end.
+//!
+//! [`raw_response`] is the reference the chain is checked against: the same strikes (same
+//! onsets, same windows) of the recordings only resampled, averaged and smoothed alike.
 
 use crate::fit::target::interpolate_bins;
 use crate::recording::Recording;
@@ -227,41 +278,135 @@ impl AnalysisConfig {
     }
 }
 
-/// The samples of one recording after steps 1-3, at the analysis rate.
-///
-/// # Errors
-/// [`AnalysisError::Conditioning`] when a step cannot run on this recording (too short).
-pub fn condition(rec: &Recording, cfg: &AnalysisConfig) -> Result<Vec<f64>, AnalysisError> {
-    condition_with(rec, cfg, &cfg.prepare()?)
+/// Below this fraction of its level, the trend filter's ringing counts as died out.
+const SETTLE_LEVEL: f64 = 1e-9;
+
+/// The trend filter's ringing is followed for at most this long (a filter with a pole on
+/// the unit circle never settles; the band's checks keep that from happening).
+const MAX_SETTLE: Seconds = Seconds(60.0);
+
+/// Which steps of the chain a recording goes through.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Chain {
+    /// Steps 1-3: smoother, resampler, trend filter.
+    Conditioned,
+    /// The resampler alone: the reference of [`raw_response`].
+    Raw,
 }
 
-fn condition_with(
+/// One recording on its zero extension at the analysis rate: the recording's first sample
+/// is at `x[lead]` and it spans `span` samples; everything else is what the chain made of
+/// the silence around it.
+struct Extended {
+    x: Vec<f64>,
+    lead: usize,
+    span: usize,
+}
+
+impl Extended {
+    /// The part of `x` the recording itself spans.
+    fn recording(&self) -> &[f64] {
+        &self.x[self.lead..self.lead + self.span]
+    }
+}
+
+/// The samples of one recording after steps 1-3, at the analysis rate, over the span of
+/// the recording (sample `n` at time `n / rate` from its start).
+///
+/// They are the samples of the linear, time-invariant chain run on the recording embedded
+/// in silence (see the module docs), so they do not depend on how the recording was cut.
+///
+/// # Errors
+/// [`AnalysisError::Conditioning`] when a step cannot run on this recording (empty).
+pub fn condition(rec: &Recording, cfg: &AnalysisConfig) -> Result<Vec<f64>, AnalysisError> {
+    let trend = cfg.prepare()?;
+    let ext = extend(rec, cfg, &trend, Chain::Conditioned)?;
+    Ok(ext.recording().to_vec())
+}
+
+/// Samples for the trend filter's ringing to fall to [`SETTLE_LEVEL`]:
+/// `ceil(ln(level) / ln(r))` for the largest pole radius `r`.
+fn settle_samples(trend: &Sos, rate: SampleRate) -> usize {
+    let cap = rate.samples_in(MAX_SETTLE);
+    let r = trend.poles().iter().map(|p| p.norm()).fold(0.0, f64::max);
+    if r.is_nan() || r >= 1.0 {
+        return cap;
+    }
+    if r <= 0.0 {
+        return 1;
+    }
+    let n = (SETTLE_LEVEL.ln() / r.ln()).ceil();
+    if n.is_finite() {
+        (n as usize).clamp(1, cap)
+    } else {
+        cap
+    }
+}
+
+/// Steps 1-3 (or the resampler alone) on the recording extended with zeros, far enough
+/// that every filter starts and ends in silence; both chains lay the result out alike.
+fn extend(
     rec: &Recording,
     cfg: &AnalysisConfig,
     trend: &Sos,
-) -> Result<Vec<f64>, AnalysisError> {
+    chain: Chain,
+) -> Result<Extended, AnalysisError> {
     let wrap = |source| AnalysisError::Conditioning {
         name: rec.name.clone(),
         source,
     };
+    if rec.samples.is_empty() {
+        return Err(wrap(SignalError::TooShort {
+            len: 0,
+            needed: 1,
+            what: "conditioning",
+        }));
+    }
     let smoother = match cfg.savgol {
         SavgolSetting::Auto { polyorder } => {
             SavitzkyGolay::widest_within(rec.rate, cfg.band.hi, Decibels(0.1), polyorder, 257)
-                .filter(|sg| sg.window() <= rec.samples.len())
         }
         SavgolSetting::Fixed { window, polyorder } => {
             Some(SavitzkyGolay::new(window, polyorder).map_err(wrap)?)
         }
         SavgolSetting::Off => None,
     };
-    let smoothed = match &smoother {
-        Some(sg) => sg.apply(&rec.samples).map_err(wrap)?,
-        None => rec.samples.clone(),
+    let resampler = Resampler::new(rec.rate, cfg.rate).map_err(wrap)?;
+    let (up, down) = resampler.ratio();
+
+    // At the recording's rate, zeros enough for the smoother's edge fits to see only zeros
+    // and for the resampler to output all of its ringing, rounded up to whole periods of
+    // the rate ratio so that the recording's first sample stays on the analysis grid.
+    let fir = smoother.as_ref().map_or(0, SavitzkyGolay::window) + resampler.reach() + 1;
+    let (up, down) = (up as usize, down as usize);
+    let pad_in = fir.div_ceil(down) * down;
+    let mut input = vec![0.0; pad_in];
+    input.extend_from_slice(&rec.samples);
+    input.resize(input.len() + pad_in, 0.0);
+    let smoothed = match (&smoother, chain) {
+        (Some(sg), Chain::Conditioned) => sg.apply(&input).map_err(wrap)?,
+        _ => input,
     };
-    let resampled = Resampler::new(rec.rate, cfg.rate)
-        .map_err(wrap)?
-        .process(&smoothed);
-    filtfilt(trend, &resampled).map_err(wrap)
+    let resampled = resampler.process(&smoothed);
+
+    // At the analysis rate, what the FIR steps leave is exactly zero, so the rest of the
+    // silence is added there, where it is cheap: long enough for the trend filter's
+    // ringing to die out at both ends, plus a whole strike window, so that a window
+    // starting anywhere in the recording runs its full length.
+    let tail = settle_samples(trend, cfg.rate)
+        + cfg.rate.samples_in(cfg.strike_length).max(8)
+        + cfg.rate.samples_in(cfg.pre_onset);
+    let mut x = vec![0.0; tail];
+    x.extend_from_slice(&resampled);
+    x.resize(x.len() + tail, 0.0);
+    if chain == Chain::Conditioned {
+        x = filtfilt(trend, &x).map_err(wrap)?;
+    }
+    Ok(Extended {
+        x,
+        lead: tail + pad_in * up / down,
+        span: resampler.output_len(rec.samples.len()),
+    })
 }
 
 /// The measured response of the strikes in `recordings`.
@@ -272,6 +417,28 @@ fn condition_with(
 pub fn measure(
     recordings: &[Recording],
     cfg: &AnalysisConfig,
+) -> Result<MeasuredResponse, AnalysisError> {
+    analyse(recordings, cfg, Chain::Conditioned)
+}
+
+/// The reference the conditioning is checked against: the magnitude spectrum of the same
+/// strikes as [`measure`] finds (same onsets, same windows), averaged and smoothed the same
+/// way, but of the recordings only resampled to the analysis rate, with no smoother and no
+/// trend filter.
+///
+/// # Errors
+/// As [`measure`].
+pub fn raw_response(
+    recordings: &[Recording],
+    cfg: &AnalysisConfig,
+) -> Result<MeasuredResponse, AnalysisError> {
+    analyse(recordings, cfg, Chain::Raw)
+}
+
+fn analyse(
+    recordings: &[Recording],
+    cfg: &AnalysisConfig,
+    chain: Chain,
 ) -> Result<MeasuredResponse, AnalysisError> {
     let trend = cfg.prepare()?;
     if recordings.is_empty() {
@@ -285,9 +452,23 @@ pub fn measure(
     let mut power = vec![0.0; n_fft / 2 + 1];
     let mut strikes = Vec::new();
     for (index, rec) in recordings.iter().enumerate() {
-        let x = condition_with(rec, cfg, &trend)?;
-        let onsets = find_onsets(&x, cfg.rate, &cfg.onsets);
+        let conditioned = extend(rec, cfg, &trend, Chain::Conditioned)?;
+        // Strikes are looked for in the recording embedded in its silence, so that the
+        // detector sees the same signal however tightly the recording was cut; but a
+        // recording whose own samples hold nothing standing above their noise (noise
+        // alone, which the silence would make look loud) has none.
+        let onsets = if find_onsets(conditioned.recording(), cfg.rate, &cfg.onsets).is_empty() {
+            Vec::new()
+        } else {
+            find_onsets(&conditioned.x, cfg.rate, &cfg.onsets)
+        };
+        let source = match chain {
+            Chain::Conditioned => conditioned,
+            Chain::Raw => extend(rec, cfg, &trend, Chain::Raw)?,
+        };
+        let x = &source.x;
         for (i, &onset) in onsets.iter().enumerate() {
+            // The window may reach into the silence before and after the recording.
             let start = onset.saturating_sub(pre);
             let next = onsets
                 .get(i + 1)
@@ -307,7 +488,7 @@ pub fn measure(
             }
             strikes.push(StrikeSource {
                 recording: index,
-                onset: cfg.rate.duration_of(onset),
+                onset: cfg.rate.duration_of(onset.saturating_sub(source.lead)),
             });
         }
     }

@@ -214,6 +214,23 @@ impl Resampler {
         (self.up, self.down)
     }
 
+    /// How far, in input samples, the kernel reaches either side of an output sample's time:
+    /// output sample `m` depends only on inputs within `reach` samples of time `m / to`.
+    ///
+    /// A signal resampled with this many zeros (or more) added at each end therefore holds
+    /// the whole of its band-limited version, pre- and post-ringing included, rather than
+    /// the part of it that falls inside the original span. Zero for equal rates.
+    #[must_use]
+    pub fn reach(&self) -> usize {
+        match &self.kernel {
+            Kernel::Identity => 0,
+            Kernel::Table { .. } | Kernel::Direct(_) => {
+                let proto = Prototype::design(self.from, self.to, self.up);
+                (proto.half as u64).div_ceil(self.up) as usize + 1
+            }
+        }
+    }
+
     /// The number of output samples for `len` input samples: `ceil(len · L / M)`.
     #[must_use]
     pub fn output_len(&self, len: usize) -> usize {
