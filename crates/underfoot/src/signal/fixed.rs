@@ -75,16 +75,18 @@
 //!   than with 16-bit data, far below a Q15 step even after the resonance's gain, so no
 //!   error feedback is needed, and it stays so for quiet drives: the deviation of the
 //!   32-bit output from the float model is the coefficients' at every level from 0 to
-//!   -30 dBFS (measured on the built-ins: within 0.01 dB of the same figure at every
+//!   -30 dBFS (measured on the built-ins: within 0.05 dB of the same figure at every
 //!   level).
 //! * **Why the output stays 32-bit.** Rounding the output to Q15 was the only part of
 //!   the loop whose error grows as the drive gets quieter: an impulse at -30 dBFS
 //!   peaks some 500 Q15 steps out of the (scaled) cascade, and the rounding error of its
 //!   whole response, white and coherent in the decaying tail, lands on the quiet band
-//!   edges of a material 40-60 dB below its peak. Measured on the built-ins: 0.06-0.35 dB
+//!   edges of a material, far below its peak. Measured on the built-ins: 0.06-0.35 dB
 //!   at 0 dBFS, 0.4-6.9 dB at -30 dBFS, where the 32-bit output stays at 0.003-0.18 dB.
-//!   The same rounding of the *float* model's output costs the same, so no arithmetic
-//!   inside the cascade can remove it; it belongs to the output device (a 16-bit DAC
+//!   The same rounding of the *float* model's output costs the same (0.4-6.9 dB at
+//!   -30 dBFS), so no arithmetic before it can remove it (noise shaping could only move
+//!   it, and a 20-900 Hz band leaves little of 0-1000 Hz to move it to); it belongs to
+//!   the output device (a 16-bit DAC
 //!   quantises any filter's output alike, a 12-bit one more), which is where firmware
 //!   applies it, with [`q31_to_q15`] or its own DAC width.
 //! * The **denominator is split** into an integer part applied exactly and a 16-bit
