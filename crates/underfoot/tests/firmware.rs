@@ -29,8 +29,8 @@ int main(int argc, char **argv) {
     FILE *in, *out;
     long n, i;
     float *xf, *yf, *yl;
-    int16_t *x15, *y15;
-    int32_t *x31, *y31;
+    int16_t *x15;
+    int32_t *y15, *x31, *y31;
     uf_f32_state sf[64];
     uf_q15_state s15[64];
     uf_q31_state s31[64];
@@ -44,7 +44,7 @@ int main(int argc, char **argv) {
     release.u = (uint32_t)strtoul(argv[6], 0, 10);
     xf = malloc(sizeof(float) * (size_t)n); yf = malloc(sizeof(float) * (size_t)n);
     yl = malloc(sizeof(float) * (size_t)n);
-    x15 = malloc(sizeof(int16_t) * (size_t)n); y15 = malloc(sizeof(int16_t) * (size_t)n);
+    x15 = malloc(sizeof(int16_t) * (size_t)n); y15 = malloc(sizeof(int32_t) * (size_t)n);
     x31 = malloc(sizeof(int32_t) * (size_t)n); y31 = malloc(sizeof(int32_t) * (size_t)n);
     if (!xf || !yf || !yl || !x15 || !y15 || !x31 || !y31) return 4;
     in = fopen(argv[3], "rb");
@@ -66,7 +66,7 @@ int main(int argc, char **argv) {
     out = fopen(argv[4], "wb");
     if (out == 0) return 7;
     fwrite(yf, sizeof(float), (size_t)n, out);
-    fwrite(y15, sizeof(int16_t), (size_t)n, out);
+    fwrite(y15, sizeof(int32_t), (size_t)n, out);
     fwrite(y31, sizeof(int32_t), (size_t)n, out);
     fwrite(yl, sizeof(float), (size_t)n, out);
     fclose(out);
@@ -130,7 +130,8 @@ fn compile(cc: &str, dir: &Path, header: &str) -> std::path::PathBuf {
 
 struct Outputs {
     f32: Vec<f32>,
-    q15: Vec<i16>,
+    /// The Q15 cascade's output: Q31.
+    q15: Vec<i32>,
     q31: Vec<i32>,
     limited: Vec<f32>,
 }
@@ -160,9 +161,9 @@ fn run(exe: &Path, dir: &Path, name: &str, x: &[f64], ceiling: f32, release: f32
         .unwrap();
     assert!(status.success(), "driver on {name}: {status}");
     let out = std::fs::read(&output).unwrap();
-    assert_eq!(out.len(), n * 14);
+    assert_eq!(out.len(), n * 16);
     let (f, rest) = out.split_at(4 * n);
-    let (q15, rest) = rest.split_at(2 * n);
+    let (q15, rest) = rest.split_at(4 * n);
     let (q31, limited) = rest.split_at(4 * n);
     Outputs {
         f32: f
@@ -170,8 +171,8 @@ fn run(exe: &Path, dir: &Path, name: &str, x: &[f64], ceiling: f32, release: f32
             .map(|c| f32::from_ne_bytes(c.try_into().unwrap()))
             .collect(),
         q15: q15
-            .chunks(2)
-            .map(|c| i16::from_ne_bytes(c.try_into().unwrap()))
+            .chunks(4)
+            .map(|c| i32::from_ne_bytes(c.try_into().unwrap()))
             .collect(),
         q31: q31
             .chunks(4)
@@ -232,7 +233,19 @@ fn exported_c_matches_rust_for_every_builtin_material() {
         let n = m.impulse_samples;
         let mut impulse = vec![0.0; n];
         impulse[0] = 1.0;
-        for (what, x) in [("impulse", impulse), ("drive", drive(n, 7))] {
+        // The quietest level the export is checked at.
+        let mut quiet = vec![0.0; n];
+        quiet[0] = QUIET.to_amplitude();
+        let mut quiet_drive = drive(n, 11);
+        quiet_drive
+            .iter_mut()
+            .for_each(|v| *v *= QUIET.to_amplitude());
+        for (what, x) in [
+            ("impulse", impulse),
+            ("drive", drive(n, 7)),
+            ("-30 dBFS impulse", quiet),
+            ("-30 dBFS drive", quiet_drive),
+        ] {
             let got = run(
                 &exe,
                 dir.path(),
@@ -265,7 +278,7 @@ fn exported_c_matches_rust_for_every_builtin_material() {
                 "{} {what}: f32 differs by {max_f32_err} (peak {peak})",
                 m.name
             );
-            if what != "impulse" {
+            if !what.ends_with("impulse") {
                 continue;
             }
             // The C impulse responses against the f64 model over the band.
@@ -280,21 +293,23 @@ fn exported_c_matches_rust_for_every_builtin_material() {
                     })
                     .fold(0.0, f64::max)
             };
+            // Each divided by the impulse actually fed.
+            let (x15, x31) = (to_q15(x[0] as f32), to_q31(x[0]));
             let q31_db = worst(
                 got.q31
                     .iter()
-                    .map(|&v| f64::from(v) / f64::from(i32::MAX))
+                    .map(|&v| f64::from(v) / f64::from(x31))
                     .collect(),
             );
             let q15_db = worst(
                 got.q15
                     .iter()
-                    .map(|&v| f64::from(v) / f64::from(i16::MAX))
+                    .map(|&v| f64::from(v) / (f64::from(x15) * 65536.0))
                     .collect(),
             );
-            let f32_db = worst(got.f32.iter().map(|&v| f64::from(v)).collect());
+            let f32_db = worst(got.f32.iter().map(|&v| f64::from(v) / x[0]).collect());
             eprintln!(
-                "{:<8} C impulse response vs f64 over the band: f32 {f32_db:.5} dB, Q15 {q15_db:.3} dB, Q31 {q31_db:.5} dB",
+                "{:<8} {what}: C impulse response vs f64 over the band: f32 {f32_db:.5} dB, Q15 {q15_db:.3} dB, Q31 {q31_db:.5} dB",
                 m.name
             );
             assert!(q31_db <= 0.5, "{}: Q31 {q31_db} dB", m.name);
@@ -303,6 +318,9 @@ fn exported_c_matches_rust_for_every_builtin_material() {
         }
     }
 }
+
+/// The quietest level the export checks by default.
+const QUIET: Decibels = Decibels(-30.0);
 
 /// The float model the export is checked against: the scaled f64 sections.
 fn export_reference(m: &export::Exported) -> underfoot::signal::Sos {

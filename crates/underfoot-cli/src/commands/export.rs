@@ -103,9 +103,15 @@ pub fn run(args: &ExportArgs) -> anyhow::Result<()> {
             ]
         })
         .collect();
+    let levels = config
+        .levels
+        .iter()
+        .map(|l| format!("{}", l.0))
+        .collect::<Vec<_>>()
+        .join(", ");
     let mut text = format!(
         "wrote {} ({} materials at their model rates; worst deviation from the float model \
-         over each band, dB; in parentheses: not exported)\n",
+         over each band and over impulses at {levels} dBFS, dB; in parentheses: not exported)\n",
         args.out.display(),
         exported.materials.len()
     );

@@ -48,22 +48,38 @@
 //!    filter's distance to it (`1 - |p|`), and
 //! 2. its response, times the gain, is within [`ExportConfig::tolerance`] (0.5 dB) of the
 //!    float (f64) model at [`ExportConfig::grid_points`] log-spaced frequencies over the
-//!    band, twice: from the quantised coefficients, and from the DFT of the impulse
-//!    response the fixed-point loop actually computes (full-scale impulse, until it has
-//!    decayed by 120 dB), which adds the data path's rounding to the coefficients'.
+//!    band: from the quantised coefficients, and from the DFT of the impulse responses
+//!    the fixed-point loop actually computes (until they have decayed by 120 dB), which
+//!    adds the data path's rounding to the coefficients'. The impulses are fed at every
+//!    one of [`ExportConfig::levels`] (0, -6, ..., -30 dBFS by default; rounded to the
+//!    input format, and each response divided by the impulse actually fed), because
+//!    rounding noise does not scale with the signal: a loop that is exact at full scale
+//!    can be decibels off for a quiet step. `f32` is checked at full scale only (its
+//!    rounding scales with the signal).
 //!
 //! The exporter refuses a library in which any material fails for a format it was asked
-//! for, naming the material, the format and the worst frequency.
+//! for, naming the material, the format, the worst frequency and the level of the
+//! impulse that failed (or that the coefficients did).
 //!
 //! # Figures
 //!
-//! On the built-in library (2 kHz, 3 to 8 sections each), Q31 comes within 5e-5 dB of
-//! the float model on every material, with pole margins unchanged to 1e-5; `f32` within
-//! 2e-3 dB. Q15 comes within 0.15 dB from its coefficients and 0.36 dB from its computed
-//! impulse response on every material (worst: sand, 0.14 / 0.35 dB; then ice, 0.14 /
-//! 0.28 dB), and keeps at least 99.8 % of every pole margin. What is left of its impulse
-//! deviation is mostly the final rounding of the output to 16 bits, which the quiet band
-//! edges of sand, ice and hard sit closest to.
+//! On the built-in library (2 kHz, 3 to 8 sections each), over impulses from 0 to
+//! -30 dBFS: Q31 comes within 2e-3 dB of the float model on every material (5e-5 dB
+//! from its coefficients), with pole margins unchanged to 1e-5; `f32` within 2e-3 dB.
+//! Q15 comes within 0.15 dB from its coefficients and 0.18 dB from its computed impulse
+//! responses at every level (worst: ice, 0.14 / 0.18 dB at -18 dBFS; sand 0.14 / 0.15
+//! dB), and keeps at least 99.8 % of every pole margin: its 32-bit output is within
+//! 0.05 dB of its own full-scale figure at every level.
+//!
+//! Before, the Q15 cascade rounded its output to 16 bits: 0.06-0.35 dB at 0 dBFS, but
+//! 0.4-6.9 dB at -30 dBFS (sand 6.9, ice 5.0, hard 3.8), the same as the float model's
+//! own impulse response rounded to 16 bits (sand 6.9, hard 3.8, ice 3.7 dB): a 16-bit
+//! output cannot hold a quiet step's response at the band edges whatever computes it,
+//! so the rounding is left to the DAC (see [`crate::signal::fixed`]).
+//!
+//! Synthetic cascades with every pole at the decay limit (radius `exp(-1/1000)` at
+//! 20, 50 and 200 Hz) pass too: 0.02 dB with zeros pairing each pole, up to 0.24 dB
+//! (Q15, a bare 20 Hz resonance falling 76 dB to 900 Hz, at -24 dBFS) without.
 //!
 //! Both fixed-point formats are exported by default ([`ExportConfig::q15`],
 //! [`ExportConfig::q31`]). Q15 is the one for a 16-bit microcontroller: 16-bit
@@ -81,7 +97,7 @@ use crate::atomic_file::{AtomicWriteError, write_atomic};
 use crate::material::{Library, MaterialModel};
 use crate::signal::fixed::{
     F32Section, F32State, Q15Section, Q15State, Q31Section, Q31State, f32_cascade, q15_cascade,
-    q31_cascade,
+    q31_cascade, to_q15, to_q31,
 };
 use crate::signal::{Biquad, Sos};
 use crate::units::{Band, Decibels, Hz, SampleRate, Seconds};
@@ -112,7 +128,8 @@ pub enum ExportError {
     /// A fixed-point format fails the check.
     #[error(
         "material {name:?}: the {format} filter fails the check: {reason} \
-         (worst deviation {worst_db:.3} dB at {worst_hz:.1} Hz, tolerance {tolerance_db} dB)"
+         (worst deviation {worst_db:.3} dB at {worst_hz:.1} Hz, {}, tolerance {tolerance_db} dB)",
+        where_text(.level)
     )]
     CheckFailed {
         /// The material.
@@ -125,12 +142,22 @@ pub enum ExportError {
         worst_db: f64,
         /// Where it is.
         worst_hz: f64,
+        /// The impulse level (dBFS) of the worst deviation; `None` when it is the
+        /// coefficients' own response (or the poles) that fails.
+        level: Option<Decibels>,
         /// The tolerance.
         tolerance_db: f64,
     },
     /// The header could not be written.
     #[error("writing the header: {0}")]
     Write(#[from] AtomicWriteError),
+}
+
+fn where_text(level: &Option<Decibels>) -> String {
+    level.map_or_else(
+        || "from the coefficients".to_string(),
+        |l| format!("impulse at {} dBFS", l.0),
+    )
 }
 
 /// How to export.
@@ -150,7 +177,16 @@ pub struct ExportConfig {
     pub q15: bool,
     /// Export (and enforce the check for) Q31 (default true).
     pub q31: bool,
+    /// The impulse levels the fixed-point loops are checked at, in dBFS (default 0,
+    /// -6, ..., -30): the range the exported figures hold for.
+    pub levels: Vec<Decibels>,
 }
+
+/// The impulse levels checked by default: 0 to -30 dBFS in steps of 6 dB.
+pub const DEFAULT_LEVELS: [f64; 6] = [0.0, -6.0, -12.0, -18.0, -24.0, -30.0];
+
+/// The quietest level the check accepts: a Q15 impulse of at least one step.
+pub const QUIETEST_LEVEL: Decibels = Decibels(-90.0);
 
 impl Default for ExportConfig {
     fn default() -> Self {
@@ -161,21 +197,38 @@ impl Default for ExportConfig {
             longest_decay: Seconds(0.5),
             q15: true,
             q31: true,
+            levels: DEFAULT_LEVELS.iter().map(|&l| Decibels(l)).collect(),
         }
     }
 }
 
 /// How close one format comes to the float model.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct FormatCheck {
     /// Worst deviation over the band of the quantised coefficients' response, in dB.
     pub coefficients_db: f64,
-    /// Worst deviation over the band of the DFT of the computed impulse response, in dB.
+    /// Worst deviation over the band of the DFT of the computed impulse response, in
+    /// dB, over every level checked.
     pub impulse_db: f64,
     /// Where the larger of the two is.
     pub worst_hz: Hz,
+    /// The impulse level of the worst impulse deviation.
+    pub worst_level: Decibels,
+    /// Per level checked, in the order of [`ExportConfig::levels`].
+    pub levels: Vec<LevelCheck>,
     /// `1 - |p|` of the pole nearest the unit circle.
     pub pole_margin: f64,
+}
+
+/// The computed impulse response at one level against the float model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LevelCheck {
+    /// The impulse's level, in dBFS.
+    pub level: Decibels,
+    /// Worst deviation over the band, in dB.
+    pub impulse_db: f64,
+    /// Where it is.
+    pub worst_hz: Hz,
 }
 
 impl FormatCheck {
@@ -318,7 +371,12 @@ pub fn prepare(model: &MaterialModel, config: &ExportConfig) -> Result<Exported,
     if !(config.grid_points >= 2
         && config.tolerance.0 > 0.0
         && config.margin_fraction >= 0.0
-        && config.longest_decay.0 > 0.0)
+        && config.longest_decay.0 > 0.0
+        && !config.levels.is_empty()
+        && config
+            .levels
+            .iter()
+            .all(|l| (QUIETEST_LEVEL.0..=0.0).contains(&l.0)))
     {
         return Err(bad(format!("invalid export settings {config:?}")));
     }
@@ -344,6 +402,7 @@ pub fn prepare(model: &MaterialModel, config: &ExportConfig) -> Result<Exported,
         reason: "a coefficient does not fit the format".into(),
         worst_db: f64::INFINITY,
         worst_hz: f64::NAN,
+        level: None,
         tolerance_db: config.tolerance.0,
     };
     let q15 = sos
@@ -381,52 +440,75 @@ pub fn prepare(model: &MaterialModel, config: &ExportConfig) -> Result<Exported,
         )
     };
     let n = impulse_length(&reference);
-    // Each format's check: its coefficients' response, and the impulse response its own
-    // loop computes. A format not asked for is still measured, for the report, but
-    // cannot fail the export.
+    // Each format's check: its coefficients' response, and the impulse responses its
+    // own loop computes at every level. A format not asked for is still measured, for
+    // the report, but cannot fail the export.
     let check = |format: &'static str,
                  coefficients: Vec<([f64; 3], [f64; 2])>,
-                 impulse: Vec<f64>,
+                 impulses: Vec<(Decibels, Vec<f64>)>,
                  enforced: bool| {
-        match checker.check(&model.name, format, &represented(coefficients), &impulse) {
+        match checker.check(&model.name, format, &represented(coefficients), &impulses) {
             (_, Some(e)) if enforced => Err(e),
             (check, _) => Ok(check),
         }
     };
 
-    let mut states = vec![Q15State::default(); q15.len()];
+    // Each response is divided by the impulse actually fed (its level rounded to the
+    // input format), so that it estimates the filter's, not the input's rounding.
     let q15_check = check(
         "Q15",
         q15.iter().map(Q15Section::coefficients).collect(),
-        impulse_response(n, |first| {
-            let x = if first { i16::MAX } else { 0 };
-            f64::from(q15_cascade(&q15, &mut states, x)) / f64::from(i16::MAX)
-        }),
+        config
+            .levels
+            .iter()
+            .map(|&level| {
+                let x = to_q15(level.to_amplitude() as f32);
+                let unit = f64::from(x) * 65536.0;
+                let mut states = vec![Q15State::default(); q15.len()];
+                let ir = impulse_response(n, |first| {
+                    f64::from(q15_cascade(&q15, &mut states, if first { x } else { 0 })) / unit
+                });
+                (level, ir)
+            })
+            .collect(),
         config.q15,
     )?;
-    let mut states = vec![Q31State::default(); q31.len()];
     let q31_check = check(
         "Q31",
         q31.iter().map(Q31Section::coefficients).collect(),
-        impulse_response(n, |first| {
-            let x = if first { i32::MAX } else { 0 };
-            f64::from(q31_cascade(&q31, &mut states, x)) / f64::from(i32::MAX)
-        }),
+        config
+            .levels
+            .iter()
+            .map(|&level| {
+                let x = to_q31(level.to_amplitude());
+                let mut states = vec![Q31State::default(); q31.len()];
+                let ir = impulse_response(n, |first| {
+                    f64::from(q31_cascade(&q31, &mut states, if first { x } else { 0 }))
+                        / f64::from(x)
+                });
+                (level, ir)
+            })
+            .collect(),
         config.q31,
     )?;
+    // Floating point scales with the level (up to its own rounding, 2^-24 relative):
+    // one full-scale impulse tells it all.
     let mut states = vec![F32State::default(); f32.len()];
     let f32_check = check(
         "f32",
         f32.iter()
             .map(|s| (s.b.map(f64::from), [f64::from(s.a[0]), f64::from(s.a[1])]))
             .collect(),
-        impulse_response(n, |first| {
-            f64::from(f32_cascade(
-                &f32,
-                &mut states,
-                if first { 1.0 } else { 0.0 },
-            ))
-        }),
+        vec![(
+            Decibels(0.0),
+            impulse_response(n, |first| {
+                f64::from(f32_cascade(
+                    &f32,
+                    &mut states,
+                    if first { 1.0 } else { 0.0 },
+                ))
+            }),
+        )],
         true,
     )?;
 
@@ -600,53 +682,80 @@ impl Checker {
             .fold((0.0, Hz(f64::NAN)), |a, b| if b.0 > a.0 { b } else { a })
     }
 
+    /// The check of one format: `impulses` are its computed impulse responses, each
+    /// with its level, divided by the impulse fed.
     fn check(
         &self,
         name: &str,
         format: &'static str,
         coefficients: &Sos,
-        impulse: &[f64],
+        impulses: &[(Decibels, Vec<f64>)],
     ) -> (FormatCheck, Option<ExportError>) {
         let (coefficients_db, coef_hz) = self.worst(
             self.grid
                 .iter()
                 .map(|&f| coefficients.response(self.rate.omega(f)).norm()),
         );
-        let (impulse_db, ir_hz) = self.worst(
-            self.grid
-                .iter()
-                .map(|&f| dft(impulse, self.rate.omega(f)).norm()),
-        );
-        let worst_hz = if impulse_db > coefficients_db {
-            ir_hz
-        } else {
-            coef_hz
-        };
+        let levels: Vec<LevelCheck> = impulses
+            .iter()
+            .map(|(level, ir)| {
+                let (impulse_db, worst_hz) = self.worst(
+                    self.grid
+                        .iter()
+                        .map(|&f| dft(ir, self.rate.omega(f)).norm()),
+                );
+                LevelCheck {
+                    level: *level,
+                    impulse_db,
+                    worst_hz,
+                }
+            })
+            .collect();
+        // The worst level; a NaN deviation (already mapped to infinity) wins.
+        let worst_level = levels.iter().fold(None::<&LevelCheck>, |w, l| match w {
+            Some(w) if w.impulse_db >= l.impulse_db => Some(w),
+            _ => Some(l),
+        });
+        let (impulse_db, ir_hz, level) = worst_level
+            .map_or((f64::NAN, Hz(f64::NAN), Decibels(0.0)), |l| {
+                (l.impulse_db, l.worst_hz, l.level)
+            });
+        let impulse_worse = impulse_db > coefficients_db;
+        let worst_hz = if impulse_worse { ir_hz } else { coef_hz };
         let check = FormatCheck {
             coefficients_db,
             impulse_db,
             worst_hz,
+            worst_level: level,
+            levels,
             pole_margin: margin(coefficients),
         };
-        let fail = |reason: String| ExportError::CheckFailed {
+        let fail = |reason: String, at_level: bool| ExportError::CheckFailed {
             name: name.to_string(),
             format,
             reason,
             worst_db: check.worst_db(),
             worst_hz: worst_hz.0,
+            level: at_level.then_some(level),
             tolerance_db: self.tolerance,
         };
         if !(check.pole_margin > 0.0
             && check.pole_margin >= self.margin_fraction * self.reference_margin)
         {
-            let e = fail(format!(
-                "a pole moved to {:.6} from the unit circle (the float filter's is {:.6})",
-                check.pole_margin, self.reference_margin
-            ));
+            let e = fail(
+                format!(
+                    "a pole moved to {:.6} from the unit circle (the float filter's is {:.6})",
+                    check.pole_margin, self.reference_margin
+                ),
+                false,
+            );
             return (check, Some(e));
         }
         if check.worst_db().is_nan() || check.worst_db() > self.tolerance {
-            let e = fail("its response is too far from the float filter's".into());
+            let e = fail(
+                "its response is too far from the float filter's".into(),
+                impulse_worse,
+            );
             return (check, Some(e));
         }
         (check, None)
@@ -686,6 +795,21 @@ mod tests {
         let e = export_library(builtin(), "built-in", &[], &loose).unwrap();
         for m in &e.materials {
             let (q15, q31) = (&m.q15_check, &m.q31_check);
+            let per_level = |c: &FormatCheck| {
+                c.levels
+                    .iter()
+                    .map(|l| format!("{:.3}", l.impulse_db))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            };
+            eprintln!(
+                "{:<8} impulse dB at {:?} dBFS: Q15 {}; Q31 {}; 16-bit output of the float model {}",
+                m.name,
+                DEFAULT_LEVELS,
+                per_level(q15),
+                per_level(q31),
+                rounded_float_figures(builtin().get(&m.name).unwrap(), m)
+            );
             eprintln!(
                 "{:<8} Q15 {:.3e}/{:.3e} dB margin {:.3e}; Q31 {:.1e}/{:.1e} dB; \
                  f32 {:.1e}/{:.1e} dB; float margin {:.3e}",
@@ -706,6 +830,16 @@ mod tests {
             assert!(m.with_q15 && m.with_q31);
             for check in [&m.q15_check, &m.q31_check, &m.f32_check] {
                 assert!(check.worst_db() <= 0.5 && check.pole_margin > 0.0);
+            }
+            // Every level of 0..-30 dBFS, each within the tolerance.
+            for check in [&m.q15_check, &m.q31_check] {
+                let levels: Vec<f64> = check.levels.iter().map(|l| l.level.0).collect();
+                assert_eq!(levels, DEFAULT_LEVELS, "{}", m.name);
+                assert!(
+                    check.levels.iter().all(|l| l.impulse_db <= 0.5),
+                    "{}",
+                    m.name
+                );
             }
             // The scaled sections times the gain are the (decay-limited) model.
             let model = builtin().get(&m.name).unwrap();
@@ -741,6 +875,146 @@ mod tests {
         assert!(*worst_db > 1e-3 && (20.0..=900.0).contains(worst_hz));
         let text = err.to_string();
         assert!(text.contains("gravel") && text.contains("Q15") && text.contains(" Hz"));
+    }
+
+    /// The worst deviation (dB) at each default level of the float model's own impulse
+    /// response, scaled as exported and rounded to Q15: what a 16-bit output costs any
+    /// filter (the reason the Q15 cascade's output stays 32-bit).
+    fn rounded_float_figures(model: &MaterialModel, m: &Exported) -> String {
+        let reference = Sos::new(m.sections.clone());
+        let checker = Checker::new(model, &reference, &ExportConfig::default());
+        let mut unit = vec![0.0; m.impulse_samples];
+        unit[0] = 1.0;
+        reference.filter_in_place(&mut unit);
+        DEFAULT_LEVELS
+            .iter()
+            .map(|&l| {
+                let x = f64::from(to_q15(Decibels(l).to_amplitude() as f32));
+                let ir: Vec<f64> = unit.iter().map(|h| (h * x).round() / x).collect();
+                let (d, _) = checker.worst(
+                    checker
+                        .grid
+                        .iter()
+                        .map(|&f| dft(&ir, checker.rate.omega(f)).norm()),
+                );
+                format!("{d:.2}")
+            })
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+
+    /// A built-in model with its filter replaced: poles at the decay limit (radius
+    /// `exp(-1/(0.5 s 2 kHz))`) at each of `hz`; zeros at DC and Nyquist (`floor`
+    /// `None`: a bare resonance) or at the poles' angles and radius `floor` (a
+    /// resonance over a flat floor, as the fits pair them).
+    fn at_the_decay_limit(hz: &[f64], floor: Option<f64>) -> MaterialModel {
+        let mut model = builtin().get("hard").unwrap().clone();
+        assert_eq!(model.sample_rate, SampleRate(2000));
+        let r = (-1.0f64 / 1000.0).exp();
+        let sos = Sos::new(
+            hz.iter()
+                .map(|&f| {
+                    let th = std::f64::consts::TAU * f / 2000.0;
+                    let b = match floor {
+                        // About unit peak gain.
+                        None => [1.0 - r, 0.0, r - 1.0],
+                        Some(z) => [1.0, -2.0 * z * th.cos(), z * z],
+                    };
+                    Biquad {
+                        b,
+                        a: [1.0, -2.0 * r * th.cos(), r * r],
+                    }
+                })
+                .collect(),
+        );
+        model.order = sos.order();
+        model.filter = crate::material::FilterCoefficients::from_sos(&sos);
+        model.name = format!("limit-{hz:?}");
+        model
+    }
+
+    #[test]
+    fn cascades_with_poles_at_the_decay_limit_pass_at_every_level() {
+        // Not the built-ins' particular coefficients: the slowest poles any model may
+        // hold, low in the band where the 16-bit remainders are the finest.
+        // A cascade of the bare resonances spans some 170 dB over the band (each falls
+        // 60-76 dB from its peak to 900 Hz), beyond any 32-bit format; the fits pair
+        // each resonance with zeros, as `floor` does (peaks of 26-34 dB over it).
+        let cases = [
+            (&[20.0][..], None),
+            (&[50.0], None),
+            (&[200.0], None),
+            (&[20.0], Some(0.95)),
+            (&[20.0, 50.0, 200.0], Some(0.95)),
+            (&[200.0, 20.0, 50.0], Some(0.9)),
+        ];
+        for (hz, floor) in cases {
+            let model = at_the_decay_limit(hz, floor);
+            let m =
+                prepare(&model, &ExportConfig::default()).unwrap_or_else(|e| panic!("{hz:?}: {e}"));
+            for check in [&m.q15_check, &m.q31_check] {
+                assert_eq!(check.levels.len(), DEFAULT_LEVELS.len());
+                eprintln!(
+                    "{hz:?}: coefficients {:.4} dB, impulses {:?}",
+                    check.coefficients_db,
+                    check
+                        .levels
+                        .iter()
+                        .map(|l| l.impulse_db)
+                        .collect::<Vec<_>>()
+                );
+                assert!(check.worst_db() <= 0.5 && check.pole_margin > 0.0, "{hz:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_level_that_fails_is_named() {
+        // An oracle: the reference's own impulse response passes at every level; one
+        // level doubled (+6 dB) must fail, and the error names that level.
+        let model = builtin().get("hard").unwrap();
+        let config = ExportConfig::default();
+        let m = prepare(model, &config).unwrap();
+        let reference = Sos::new(m.sections.clone());
+        let checker = Checker::new(model, &reference, &config);
+        let mut ir = vec![0.0; m.impulse_samples];
+        ir[0] = 1.0;
+        reference.filter_in_place(&mut ir);
+        let mut impulses: Vec<(Decibels, Vec<f64>)> =
+            config.levels.iter().map(|&l| (l, ir.clone())).collect();
+        let (ok, err) = checker.check("hard", "Q15", &reference, &impulses);
+        assert!(err.is_none() && ok.impulse_db < 1e-3, "{ok:?}");
+        impulses[3].1.iter_mut().for_each(|v| *v *= 2.0);
+        let (bad, err) = checker.check("hard", "Q15", &reference, &impulses);
+        assert_eq!(bad.worst_level, Decibels(-18.0));
+        assert!((bad.impulse_db - 20.0 * 2f64.log10()).abs() < 1e-3);
+        let err = err.unwrap();
+        assert!(
+            matches!(&err, ExportError::CheckFailed { level: Some(l), format: "Q15", .. } if l.0 == -18.0),
+            "{err}"
+        );
+        let text = err.to_string();
+        assert!(
+            text.contains("hard") && text.contains("-18 dBFS") && text.contains(" Hz"),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn levels_outside_the_range_are_refused() {
+        for levels in [
+            vec![],
+            vec![Decibels(3.0)],
+            vec![Decibels(-100.0)],
+            vec![Decibels(f64::NAN)],
+        ] {
+            let config = ExportConfig {
+                levels,
+                ..ExportConfig::default()
+            };
+            let err = prepare(builtin().get("hard").unwrap(), &config).unwrap_err();
+            assert!(matches!(err, ExportError::BadModel { .. }), "{err}");
+        }
     }
 
     #[test]

@@ -4,10 +4,12 @@
  * Library SHA-256: b162a89f66b13e7a3bfef15acf4ca826276dee1bb844e25c78475379b2677c5e
  *
  * Worst deviation from the float (f64) model over each band, in dB: from the
- * quantised coefficients / from the DFT of the impulse response the loop computes.
- * Pole margin: 1 - |p| of the pole nearest the unit circle.
+ * quantised coefficients / from the DFT of the impulse responses the loop computes,
+ * the worst over impulses at 0, -6, -12, -18, -24, -30 dBFS (f32: 0 dBFS): the figures hold
+ * for drives at those levels (the Q15 cascade's 32-bit output, before any
+ * rounding to a DAC's width). Pole margin: 1 - |p| of the pole nearest the unit circle.
  *   material          sos               f32               Q15               Q31    margin
- *   test-tile           2     6.5e-6/1.6e-5     8.3e-4/7.3e-2     8.9e-8/3.2e-6  0.025321
+ *   test-tile           2     6.5e-6/1.6e-5     8.3e-4/8.4e-4     8.9e-8/5.1e-5  0.025321
  */
 #ifndef UNDERFOOT_MATERIALS_H
 #define UNDERFOOT_MATERIALS_H
@@ -20,8 +22,11 @@
  * coefficients (scaling included) are B, g[0] B + e[0] 2^-e_frac, g[1] B + e[1] 2^-e_frac
  * and c[0] + d[0] 2^-d_frac, c[1] + d[1] 2^-d_frac: the integer parts g and c
  * are applied exactly, so the 16 bits of e and d hold only the small remainders that
- * place zeros and poles near z = 1. Sections pass Q31 values; the cascade's input and
- * output are Q15. 16x32-bit products add up in a 64-bit accumulator.
+ * place zeros and poles near z = 1. Sections pass Q31 values; the cascade's input is
+ * Q15 and its output the last section's Q31 value, not rounded: rounding it to 16 bits
+ * costs a quiet drive what it would cost the float model (decibels at the quiet band
+ * edges for a -30 dBFS impulse), so do it once, at the DAC (uf_q31_to_q15 for 16 bits).
+ * 16x32-bit products add up in a 64-bit accumulator.
  * Q31: coefficients in Q(shift).(31 - shift); the numerator's sum is shifted right by
  * `scale` bits in the accumulator; `feedback` weights the past rounding errors
  * (error-spectrum shaping).
@@ -66,8 +71,11 @@ void uf_q31_reset(uf_q31_state *state, unsigned sections);
 
 /* One sample through a cascade of `sections` sections. */
 float uf_f32_cascade(const uf_f32_section *sos, uf_f32_state *state, unsigned sections, float x);
-int16_t uf_q15_cascade(const uf_q15_section *sos, uf_q15_state *state, unsigned sections, int16_t x);
+int32_t uf_q15_cascade(const uf_q15_section *sos, uf_q15_state *state, unsigned sections, int16_t x);
 int32_t uf_q31_cascade(const uf_q31_section *sos, uf_q31_state *state, unsigned sections, int32_t x);
+
+/* A Q31 value rounded (half up) and saturated to Q15, for a 16-bit output. */
+int16_t uf_q31_to_q15(int32_t y);
 
 /* Fixed-point hard limit: saturate to +-ceiling. */
 int16_t uf_q15_clamp(int16_t x, int16_t ceiling);
@@ -170,10 +178,9 @@ static int64_t uf_shl64(int64_t v, unsigned n) {
     return v * ((int64_t)1 << n);
 }
 
-int16_t uf_q15_cascade(const uf_q15_section *sos, uf_q15_state *state, unsigned sections, int16_t x) {
+int32_t uf_q15_cascade(const uf_q15_section *sos, uf_q15_state *state, unsigned sections, int16_t x) {
     unsigned i;
     int32_t v = (int32_t)x * 65536;
-    int64_t out;
     for (i = 0; i < sections; ++i) {
         const uf_q15_section *s = &sos[i];
         uf_q15_state *st = &state[i];
@@ -198,8 +205,12 @@ int16_t uf_q15_cascade(const uf_q15_section *sos, uf_q15_state *state, unsigned 
         st->y[1] = st->y[0]; st->y[0] = y;
         v = y;
     }
-    out = ((int64_t)v + 32768) >> 16;
-    return (int16_t)(out > INT16_MAX ? INT16_MAX : (out < INT16_MIN ? INT16_MIN : out));
+    return v;
+}
+
+int16_t uf_q31_to_q15(int32_t y) {
+    int64_t out = ((int64_t)y + 32768) >> 16;
+    return (int16_t)(out > INT16_MAX ? INT16_MAX : out);
 }
 
 int32_t uf_q31_cascade(const uf_q31_section *sos, uf_q31_state *state, unsigned sections, int32_t x) {
