@@ -30,10 +30,14 @@
 //! the same steps, as loud, as far apart, for every block size.
 //!
 //! A reading drained after its frame has been rendered is applied at once (counted as
-//! late). One more than `B + M` late, or more than `2 (B + M)` early (the sensor clock
-//! jumped, or has drifted that far from the audio clock), re-anchors the clock on itself
-//! as the first reading did (counted as a resync): a lasting offset becomes one jump in
-//! latency instead of every reading being late or held back.
+//! late). One more than `B + M` late, or more than `B + M` plus a quarter second early
+//! (the sensor clock jumped, or has drifted that far from the audio clock; a renderer
+//! that stalled for less than that catches up and plays the readings on their frames),
+//! re-anchors the clock on itself as the first reading did (counted as a resync): a
+//! lasting offset becomes one jump in latency instead of every reading being late or held
+//! back. Frames never go back: a reading is never scheduled before the one drained before
+//! it, so a re-anchoring cannot reorder the readings (which the detector would take for a
+//! sensor clock that restarted).
 
 use crate::units::{SampleRate, Seconds};
 
@@ -51,7 +55,10 @@ pub struct ClockAnchor {
 pub(super) struct SensorClock {
     rate: f64,
     margin: u64,
+    /// How far beyond the budget a reading may be early before the clock re-anchors.
+    slack: f64,
     anchor: Option<ClockAnchor>,
+    last: u64,
     resyncs: u64,
 }
 
@@ -61,7 +68,9 @@ impl SensorClock {
         Self {
             rate: rate.hz(),
             margin: (latency.0.max(0.0) * rate.hz()).round() as u64,
+            slack: 0.25 * rate.hz(),
             anchor: None,
+            last: 0,
             resyncs: 0,
         }
     }
@@ -87,12 +96,15 @@ impl SensorClock {
         // In f64: a sensor time far from the anchor must not wrap.
         let frame = anchor.frame as f64 + offset;
         let (now_f, budget_f) = (now as f64, budget as f64);
-        if frame < now_f - budget_f || frame > now_f + 2.0 * budget_f {
+        let frame = if frame < now_f - budget_f || frame > now_f + budget_f + self.slack {
             self.anchor = Some(fresh);
             self.resyncs += 1;
-            return fresh.frame;
-        }
-        frame.max(0.0) as u64
+            fresh.frame
+        } else {
+            frame.max(0.0) as u64
+        };
+        self.last = self.last.max(frame);
+        self.last
     }
 }
 
@@ -132,12 +144,15 @@ mod tests {
         // Late beyond it: the clock moves.
         assert_eq!(c.frame_of(0.002, 400, 100), 500);
         assert_eq!(c.resyncs(), 1);
-        // A sensor clock that jumps ahead (or back) by a second.
+        // A sensor clock that jumps ahead by a second.
         assert_eq!(c.frame_of(1.002, 500, 100), 600);
-        assert_eq!(c.frame_of(0.5, 600, 100), 700);
+        assert_eq!(c.resyncs(), 2);
+        // Early by less than the budget and a quarter second (a renderer catching up).
+        assert_eq!(c.frame_of(1.202, 500, 100), 600 + 9600);
+        assert_eq!(c.resyncs(), 2);
+        // One that jumps back re-anchors, but is not scheduled before the one before it.
+        assert_eq!(c.frame_of(0.5, 600, 100), 600 + 9600);
         assert_eq!(c.resyncs(), 3);
-        // Up to two budgets early is fine.
-        assert_eq!(c.frame_of(0.5 + 200.0 / 48_000.0, 700, 100), 900);
-        assert_eq!(c.resyncs(), 3);
+        assert_eq!(c.frame_of(0.7, 700, 100), 700 + 9600);
     }
 }
