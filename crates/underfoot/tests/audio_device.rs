@@ -547,3 +547,130 @@ fn jack_loopback_sweep_is_flat_and_aligned() {
     assert!(deviation < 0.1, "deviation from flat {deviation} dB");
     assert!(gain.abs() < 0.1, "gain {gain} dB");
 }
+
+/// Live equals offline on a paced device: the walk (`gait:steps=6` on gravel),
+/// replayed in real time as `underfoot run` does (stamped readings sent without a frame),
+/// played by the JACK dummy server at its 64-frame period, against the offline render of
+/// the same walk. Each step's peak within 0.5 dB, its onset within one sample of the
+/// sensor clock's rule (`frame(t) = A + round((t - t_A) fs)`, so the offline render shifted
+/// by `A - round(t_A fs)`). Mirrors the CLI's `run --output wav:` test
+/// (`underfoot-cli/tests/live_offline.rs`).
+#[cfg(feature = "jack")]
+#[test]
+fn jack_live_walk_plays_as_the_offline_render() {
+    use std::sync::atomic::AtomicU32;
+    use underfoot::engine::offline::{render, track_events};
+    use underfoot::engine::{self, EngineConfig, MaterialBank, TimedEvent};
+    use underfoot::force::gait::{self, GaitConfig, nominal_step};
+    use underfoot::io::replay::ReplaySource;
+    use underfoot::io::{EventSource, SourceState};
+    use underfoot::material::builtin::builtin;
+    use underfoot::synthesis::VoiceConfig;
+    use underfoot::units::{Newtons, Seconds};
+
+    if !jack_enabled() {
+        return;
+    }
+    let _guard = one_at_a_time();
+    let rate = SampleRate(48_000);
+    let bank = || {
+        MaterialBank::prepare(
+            builtin(),
+            rate,
+            &VoiceConfig::default(),
+            &nominal_step(70.0, 1.8, rate.hz()),
+            Newtons::weight_of(70.0),
+        )
+        .unwrap()
+    };
+    let slot = bank().slot("gravel").unwrap();
+    let config = EngineConfig {
+        sensor_latency: Seconds(0.04),
+        ..EngineConfig::default()
+    };
+    let track = gait::generate(&GaitConfig {
+        steps: 6,
+        channels: 1,
+        ..GaitConfig::default()
+    })
+    .unwrap()
+    .track;
+    let events = track_events(&track, rate);
+    let frames = events.last().and_then(|e| e.at).unwrap() as usize + 48_000;
+    let offline = render(&config, bank(), &[slot], &events, frames, 64).unwrap();
+
+    // Channel 0 of every frame the device plays, by engine frame: stored, never allocated.
+    const CAPACITY: usize = 48_000 * 12;
+    static RECORDED: std::sync::OnceLock<Vec<AtomicU32>> = std::sync::OnceLock::new();
+    let recorded = RECORDED.get_or_init(|| (0..CAPACITY).map(|_| AtomicU32::new(0)).collect());
+    let (mut ctl, mut eng) = engine::build(&config, bank(), &[slot]).unwrap();
+    let output = AudioOutput::start(&jack_config(2), move |out: &mut [f32], channels: usize| {
+        let start = eng.frame() as usize;
+        eng.process(out, channels);
+        for (i, frame) in out.chunks(channels).enumerate() {
+            if let Some(slot) = recorded.get(start + i) {
+                slot.store(frame[0].to_bits(), Ordering::Relaxed);
+            }
+        }
+    })
+    .expect("start on JACK");
+    let mut source = ReplaySource::new(track.clone(), 1.0).unwrap();
+    let mut full = 0;
+    while source
+        .poll(Duration::from_millis(20), &mut |e| {
+            if ctl.send(TimedEvent::now(e)).is_err() {
+                full += 1;
+            }
+        })
+        .unwrap()
+        == SourceState::Open
+    {}
+    std::thread::sleep(Duration::from_millis(1500));
+    let stats = output.stop();
+    let t = ctl.telemetry();
+    println!("JACK live walk: {t:?}, device {stats:?}");
+    assert_eq!(full, 0);
+    assert_eq!(t.strikes, 6);
+    assert_eq!((t.late, t.resyncs), (0, 0), "every reading on its frame");
+    let anchor = t.sensor_clock.expect("the sensor clock is anchored");
+    let shift = anchor.frame as usize - (anchor.time.0 * rate.hz()).round() as usize;
+    let live: Vec<f32> = recorded
+        .iter()
+        .map(|v| f32::from_bits(v.load(Ordering::Relaxed)))
+        .collect();
+
+    let steps = |y: &[f32]| {
+        let threshold = 10f32.powf(-30.0 / 20.0);
+        let mut onsets: Vec<usize> = Vec::new();
+        for (i, v) in y.iter().enumerate() {
+            if v.abs() > threshold && onsets.last().is_none_or(|&o| i > o + 14_400) {
+                onsets.push(i);
+            }
+        }
+        onsets
+            .iter()
+            .enumerate()
+            .map(|(k, &o)| {
+                let end = onsets.get(k + 1).copied().unwrap_or(y.len());
+                let peak = y[o..end].iter().fold(0.0f32, |m, v| m.max(v.abs()));
+                (o, 20.0 * f64::from(peak).log10())
+            })
+            .collect::<Vec<_>>()
+    };
+    let want = steps(&offline.samples);
+    let got = steps(&live);
+    println!("offline steps {want:?}\nlive steps {got:?} (shift {shift})");
+    assert_eq!((want.len(), got.len()), (6, 6));
+    for (k, (w, g)) in want.iter().zip(&got).enumerate() {
+        assert!(
+            (w.1 - g.1).abs() <= 0.5,
+            "step {k}: {g:?} live, {w:?} offline"
+        );
+        assert!(
+            (w.0 + shift).abs_diff(g.0) <= 1,
+            "step {k}: onset {} live, {} offline + {shift}",
+            g.0,
+            w.0
+        );
+    }
+}

@@ -119,14 +119,23 @@ fn rendering_never_allocates_or_frees() {
                 let f = (700.0 * (t * std::f32::consts::TAU * 0.9).sin()).max(0.0);
                 for c in 0..4u16 {
                     let reading = SensorReading::new(&[0.5 * f, 0.5 * f]).unwrap();
-                    ctl.send(TimedEvent::at(
-                        frame + k * 96,
-                        Event::Force {
+                    // Channel 0's readings carry their sensor time and no frame: the
+                    // sensor clock schedules them on the audio thread.
+                    let event = if c == 0 {
+                        TimedEvent::now(Event::Force {
                             channel: c,
-                            reading,
-                        },
-                    ))
-                    .unwrap();
+                            reading: reading.at(Seconds(f64::from(t))),
+                        })
+                    } else {
+                        TimedEvent::at(
+                            frame + k * 96,
+                            Event::Force {
+                                channel: c,
+                                reading,
+                            },
+                        )
+                    };
+                    ctl.send(event).unwrap();
                 }
             }
             if block % 50 == 7 {

@@ -9,7 +9,15 @@
 //!
 //! The input is polled on this thread and crosses to the audio thread over the engine's
 //! lock-free queue. `wav:` and `null` outputs are paced by a thread that renders one
-//! buffer per buffer period, like a device would, so a session can run without one.
+//! buffer per buffer period, like a device would, so a session can run without one. Like
+//! a device's, its frame clock keeps time with the wall clock: a wake-up that comes late
+//! renders the buffers it missed at once instead of dropping them from the timeline.
+//!
+//! A replay or a walk stamps each reading with its sensor time, and the engine plays it at
+//! the frame its sensor clock gives it, one buffer plus `--sensor-latency` after that
+//! time (`underfoot::engine`, *Timing*): the steps come out as loud and as far apart as in
+//! `underfoot render`, whatever `--buffer`. The report gives the clock's anchor, so the
+//! frame of every reading can be checked; late readings and re-anchorings are counted.
 //! A session ends when a replay or walk has played out (plus one second to ring out),
 //! after `--duration`, on Ctrl-C or SIGTERM, or on Enter when stdin is a terminal; the
 //! output then fades out before the device is closed.
@@ -35,7 +43,7 @@ use underfoot::io::replay::ReplaySource;
 use underfoot::io::serial::{SerialConfig, SerialSource};
 use underfoot::io::wav::{WavFormat, WavSink};
 use underfoot::io::{EventSource, SourceState};
-use underfoot::units::{Decibels, SampleRate};
+use underfoot::units::{Decibels, SampleRate, Seconds};
 
 use crate::commands::synth::SynthArgs;
 use crate::output::emit;
@@ -70,6 +78,10 @@ pub struct RunArgs {
     /// Audio host: default, alsa or jack.
     #[arg(long, default_value = "default", value_name = "HOST")]
     host: String,
+    /// Jitter margin of the sensor clock, in milliseconds: a timed reading (replay, gait)
+    /// plays one buffer plus this after its sensor time.
+    #[arg(long = "sensor-latency", default_value_t = 10.0, value_name = "MS")]
+    sensor_latency: f64,
     /// Stop after this many seconds.
     #[arg(long, visible_alias = "seconds", value_name = "SECONDS")]
     duration: Option<f64>,
@@ -109,7 +121,13 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         (1..=64).contains(&channels),
         "--channels {channels}: need 1 to 64"
     );
-    let setup = args.synth.setup(channels)?;
+    let mut setup = args.synth.setup(channels)?;
+    anyhow::ensure!(
+        args.sensor_latency.is_finite() && (0.0..=1000.0).contains(&args.sensor_latency),
+        "--sensor-latency {} ms: need 0 to 1000",
+        args.sensor_latency
+    );
+    setup.config.sensor_latency = Seconds(args.sensor_latency * 1e-3);
     let names = if args.material.is_empty() {
         vec![setup.library.materials[0].name.clone()]
     } else {
@@ -207,10 +225,17 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         Some((host, sim)) => interface_report(&host, sim)?,
         None => String::new(),
     };
+    let clock = match t.sensor_clock {
+        Some(a) => format!(
+            "sensor clock: t = {:.6} s at frame {}; late readings {}, resyncs {}\n",
+            a.time.0, a.frame, t.late, t.resyncs
+        ),
+        None => String::new(),
+    };
     emit(&format!(
         "ran {:.1} s: {} strike(s), peak {:.1} dBFS, {} sample(s) limited, {} non-finite \
          silenced, {} watchdog fade(s)\ninput: {} event(s), {} rejected, {} byte(s) skipped, \
-         {} dropped (queue full)\n{interface_report}{device_report}\n",
+         {} dropped (queue full)\n{clock}{interface_report}{device_report}\n",
         started.elapsed().as_secs_f64(),
         t.strikes,
         Decibels::from_amplitude(f64::from(t.peak).max(1e-12)).0,
@@ -561,9 +586,15 @@ fn paced(
         let now = Instant::now();
         if next > now {
             thread::sleep(next - now);
-        } else if now - next > period {
+        } else if now - next > Duration::from_secs(1) {
+            // Stalled for over a second (a suspended process): start the clock afresh
+            // rather than render a burst of catch-up buffers.
             late += 1;
             next = now;
+        } else if now - next > period {
+            // Behind by more than a buffer: render the missed ones back to back, as a
+            // device's clock would have played them, so frames keep wall-clock time.
+            late += 1;
         }
     }
     let written = match sink {

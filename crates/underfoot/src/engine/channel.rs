@@ -4,11 +4,12 @@ use super::{EngineConfig, Telemetry};
 use crate::force::SensorReading;
 use crate::force::condition::ForceConditioner;
 use crate::force::drive::{DriveKind, Polarity};
-use crate::force::steps::StepDetector;
+use crate::force::steps::{ReadingTime, StepDetector};
 use crate::physical::Ground;
 use crate::safety::Watchdog;
 use crate::signal::noise::SplitMix64;
 use crate::synthesis::{PreparedMaterial, Voice};
+use crate::units::Seconds;
 
 /// A channel's state. All buffers are sized at construction; rendering never allocates.
 pub(super) struct Channel {
@@ -48,7 +49,7 @@ impl Channel {
         let rate = config.rate;
         Self {
             conditioner: ForceConditioner::new(rate, config.sensor_rate),
-            detector: StepDetector::new(&config.detector, rate),
+            detector: StepDetector::new(&config.detector, config.sensor_rate),
             watchdog: Watchdog::new(&config.watchdog, rate),
             // Each channel its own stream: steps on two feet are not the same.
             rng: SplitMix64::new(config.seed ^ (index as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)),
@@ -102,7 +103,8 @@ impl Channel {
         self.fade_left = if had_material { self.fade_len } else { 0 };
     }
 
-    /// A force reading at engine frame `frame`.
+    /// A force reading applied at engine frame `frame`. The detector times it by its
+    /// sensor time when it has one, else by the frame.
     pub(super) fn force(&mut self, reading: &SensorReading, frame: u64, telemetry: &Telemetry) {
         if !reading.is_finite() {
             telemetry.count_rejected();
@@ -110,7 +112,11 @@ impl Channel {
         }
         self.conditioner.push(reading);
         self.watchdog.feed();
-        if let Some(strike) = self.detector.update(reading.total(), frame) {
+        let time = reading.time().map_or_else(
+            || ReadingTime::Arrival(Seconds(frame as f64 / self.rate_hz)),
+            ReadingTime::Sensor,
+        );
+        if let Some(strike) = self.detector.update(reading.total(), time) {
             self.strike(strike.intensity, telemetry);
         }
     }

@@ -17,10 +17,24 @@
 //! # Timing
 //!
 //! An event with a frame (`TimedEvent::at`) takes effect at exactly that sample, whatever
-//! the block size: the block is split there. An event without one takes effect at the
-//! start of the next block. So an offline render is identical for every block size, and
-//! a live step's impulse reaches the output in the first block rendered after its reading
-//! arrives.
+//! the block size: the block is split there. So an offline render is identical for every
+//! block size.
+//!
+//! A force reading without a frame but with its sensor time ([`SensorReading::at`](crate::force::SensorReading::at); a
+//! replay or a generated walk stamps every reading) is given a frame by the engine's
+//! sensor clock ([`clock`], which states the rule): the first one anchors sensor time `t_A`
+//! at frame `A = F + B + M` (drained at the start of a call at frame `F` of `B` frames,
+//! `M` = [`EngineConfig::sensor_latency`]), and every one applies at
+//! `frame(t) = A + round((t − t_A) · fs)`, exactly, like a timed event. A step's onset is
+//! then `frame(t_s)`, `t_s` the sensor time of the reading that crosses the threshold, and
+//! its intensity comes from the readings' sensor times ([`crate::force::steps`]): a live
+//! session plays what an offline render of the same track plays, shifted by a constant,
+//! for every block size (tested for 16 to 1024 frames). The price is a fixed latency of
+//! one block plus `M`.
+//!
+//! Any other event without a frame (an explicit step, a material change, a reading that
+//! knows no sensor time) takes effect at the start of the next block: its impulse reaches
+//! the output in the first block rendered after it arrives.
 //!
 //! # Output
 //!
@@ -30,12 +44,14 @@
 //! [`Fader`] ramps everything in at start and out at [`Controller::stop`].
 
 mod channel;
+pub mod clock;
 pub mod event;
 pub mod offline;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 
+pub use clock::ClockAnchor;
 pub use event::{Event, TimedEvent};
 
 use crate::compensation::CompensationError;
@@ -47,6 +63,7 @@ use crate::safety::{Fader, Limiter, LimiterReport, WatchdogConfig};
 use crate::synthesis::{PreparedMaterial, VoiceConfig, VoiceError};
 use crate::units::{Decibels, Hz, Newtons, SampleRate, Seconds};
 use channel::Channel;
+use clock::SensorClock;
 
 /// Everything the engine is set up with.
 #[derive(Debug, Clone, PartialEq)]
@@ -67,8 +84,12 @@ pub struct EngineConfig {
     pub seed: u64,
     /// Nominal body weight the force drives normalise by (default 70 kg).
     pub nominal_weight: Newtons,
-    /// About how often sensor readings arrive (sets the force ramp; default 500 Hz).
+    /// About how often sensor readings arrive (sets the force ramp, and the reading
+    /// period assumed for readings without a sensor time; default 500 Hz).
     pub sensor_rate: Hz,
+    /// Jitter margin of the sensor clock (`M` in [`clock`]): a stamped reading sent
+    /// without a frame plays one block plus this after its sensor time (default 10 ms).
+    pub sensor_latency: Seconds,
     /// Heel-strike detection.
     pub detector: DetectorConfig,
     /// Input watchdog.
@@ -102,6 +123,7 @@ impl Default for EngineConfig {
             seed: 0x5EED,
             nominal_weight: Newtons::weight_of(70.0),
             sensor_rate: Hz(500.0),
+            sensor_latency: Seconds(0.01),
             detector: DetectorConfig::default(),
             watchdog: WatchdogConfig::default(),
             gain: Decibels(0.0),
@@ -208,7 +230,7 @@ impl MaterialBank {
 }
 
 /// Counters the engine publishes, readable from any thread.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct Telemetry {
     frames: AtomicU64,
     strikes: AtomicU64,
@@ -220,7 +242,33 @@ pub struct Telemetry {
     watchdog_trips: AtomicU64,
     peak_bits: AtomicU32,
     stopped: AtomicBool,
+    anchor_frame: AtomicU64,
+    anchor_time_bits: AtomicU64,
+    resyncs: AtomicU64,
 }
+
+impl Default for Telemetry {
+    fn default() -> Self {
+        Self {
+            frames: AtomicU64::new(0),
+            strikes: AtomicU64::new(0),
+            non_finite: AtomicU64::new(0),
+            limited: AtomicU64::new(0),
+            rejected: AtomicU64::new(0),
+            late: AtomicU64::new(0),
+            dropped: AtomicU64::new(0),
+            watchdog_trips: AtomicU64::new(0),
+            peak_bits: AtomicU32::new(0),
+            stopped: AtomicBool::new(false),
+            anchor_frame: AtomicU64::new(NO_ANCHOR),
+            anchor_time_bits: AtomicU64::new(0),
+            resyncs: AtomicU64::new(0),
+        }
+    }
+}
+
+/// `anchor_frame` before the sensor clock is anchored.
+const NO_ANCHOR: u64 = u64::MAX;
 
 /// A snapshot of [`Telemetry`].
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -245,6 +293,12 @@ pub struct TelemetrySnapshot {
     pub peak: f32,
     /// Whether the shut-down fade has finished.
     pub stopped: bool,
+    /// Where the sensor clock is anchored ([`clock`]), once a stamped reading has come
+    /// without a frame: with it, a reading of sensor time `t` plays at frame
+    /// `anchor.frame + round((t - anchor.time) * fs)`.
+    pub sensor_clock: Option<ClockAnchor>,
+    /// Times the sensor clock re-anchored (a jump, or a drift beyond its budget).
+    pub resyncs: u64,
 }
 
 impl Telemetry {
@@ -270,6 +324,16 @@ impl Telemetry {
             watchdog_trips: self.watchdog_trips.load(Ordering::Relaxed),
             peak: f32::from_bits(self.peak_bits.load(Ordering::Relaxed)),
             stopped: self.stopped.load(Ordering::Relaxed),
+            sensor_clock: match self.anchor_frame.load(Ordering::Relaxed) {
+                NO_ANCHOR => None,
+                frame => Some(ClockAnchor {
+                    frame,
+                    time: Seconds(f64::from_bits(
+                        self.anchor_time_bits.load(Ordering::Relaxed),
+                    )),
+                }),
+            },
+            resyncs: self.resyncs.load(Ordering::Relaxed),
         }
     }
 }
@@ -393,6 +457,7 @@ pub struct Engine {
     telemetry: Arc<Telemetry>,
     scratch: Vec<f32>,
     peak: f32,
+    clock: SensorClock,
 }
 
 /// Builds an engine and its controller. `initial` is each channel's starting material
@@ -420,6 +485,12 @@ pub fn build(
         return Err(EngineError::InvalidConfig(format!(
             "ceiling {} and gain {} must be finite, the ceiling at most 0 dB (full scale)",
             config.ceiling, config.gain
+        )));
+    }
+    if !(config.sensor_latency.0.is_finite() && (0.0..=1.0).contains(&config.sensor_latency.0)) {
+        return Err(EngineError::InvalidConfig(format!(
+            "sensor latency {} must be 0 to 1 s",
+            config.sensor_latency
         )));
     }
     if !(config.perturbation.is_finite() && (0.0..=0.5).contains(&config.perturbation)) {
@@ -475,6 +546,7 @@ pub fn build(
         telemetry: Arc::clone(&telemetry),
         scratch: vec![0.0; config.max_block],
         peak: 0.0,
+        clock: SensorClock::new(config.rate, config.sensor_latency),
     };
     let controller = Controller {
         commands: command_tx,
@@ -495,8 +567,8 @@ impl Engine {
         if device_channels == 0 {
             return;
         }
-        self.drain_commands();
         let frames = out.len() / device_channels;
+        self.drain_commands(frames);
         out[frames * device_channels..].fill(0.0);
         let mut done = 0;
         while done < frames {
@@ -537,10 +609,10 @@ impl Engine {
         self.frame
     }
 
-    fn drain_commands(&mut self) {
+    fn drain_commands(&mut self, frames: usize) {
         while let Ok(command) = self.commands.pop() {
             match command {
-                Command::Event(e) => match e.at {
+                Command::Event(e) => match e.at.or_else(|| self.sensor_frame(&e.event, frames)) {
                     Some(at) if at > self.frame => {
                         if self.pending.len() < self.pending.capacity() {
                             // Stable: events for the same frame keep their order.
@@ -573,6 +645,16 @@ impl Engine {
         }
     }
 
+    /// The frame the sensor clock gives a stamped force reading sent without one.
+    fn sensor_frame(&mut self, event: &Event, frames: usize) -> Option<u64> {
+        let Event::Force { reading, .. } = event else {
+            return None;
+        };
+        // A non-finite reading is rejected when applied, and must not move the clock.
+        let time = reading.time().filter(|_| reading.is_finite())?;
+        Some(self.clock.frame_of(time.0, self.frame, frames))
+    }
+
     fn apply_due(&mut self, now: u64) {
         let due = self.pending.partition_point(|(f, _)| *f <= now);
         for i in 0..due {
@@ -589,7 +671,9 @@ impl Engine {
             return;
         };
         match event {
-            Event::Force { reading, .. } => channel.force(&reading, frame, &self.telemetry),
+            Event::Force { reading, .. } => {
+                channel.force(&reading, frame, &self.telemetry);
+            }
             Event::Step { intensity, .. } => channel.step(intensity, &self.telemetry),
             Event::Material { slot, .. } => match self.bank.get(usize::from(slot)) {
                 Some(m) => channel.set_material(slot, m),
@@ -648,6 +732,12 @@ impl Engine {
         t.frames.store(self.frame, Ordering::Relaxed);
         t.peak_bits.store(self.peak.to_bits(), Ordering::Relaxed);
         t.stopped.store(self.fader.is_silent(), Ordering::Relaxed);
+        if let Some(anchor) = self.clock.anchor() {
+            t.anchor_time_bits
+                .store(anchor.time.0.to_bits(), Ordering::Relaxed);
+            t.anchor_frame.store(anchor.frame, Ordering::Relaxed);
+        }
+        t.resyncs.store(self.clock.resyncs(), Ordering::Relaxed);
         let trips: u64 = self.channels.iter().map(Channel::watchdog_trips).sum();
         t.watchdog_trips.store(trips, Ordering::Relaxed);
     }

@@ -9,8 +9,12 @@ use crate::force::gait::{self, GaitConfig, GaitError};
 use crate::force::track::ForceTrack;
 use crate::units::{SampleRate, Seconds};
 
-/// Events for a force track: each row's readings at the frame of its time, channel `k` of
-/// the track to engine channel `k`.
+/// Events for a force track: each row's readings, stamped with the row's time as their
+/// sensor time, at frame `round((t - t_0) * fs)` with `t_0 = min(first row time, 0)`;
+/// channel `k` of the track to engine channel `k`.
+///
+/// A live session of the same track (readings stamped alike, sent without a frame) plays
+/// the same output shifted by a constant ([`super::clock`]).
 #[must_use]
 pub fn track_events(track: &ForceTrack, rate: SampleRate) -> Vec<TimedEvent> {
     let start = track.rows.first().map_or(0.0, |r| r.time.0.min(0.0));
@@ -22,7 +26,7 @@ pub fn track_events(track: &ForceTrack, rate: SampleRate) -> Vec<TimedEvent> {
                 frame,
                 Event::Force {
                     channel: channel as u16,
-                    reading: *reading,
+                    reading: reading.at(row.time),
                 },
             ));
         }

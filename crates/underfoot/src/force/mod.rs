@@ -26,13 +26,22 @@ pub mod track;
 /// The most sensors one channel can have.
 pub const MAX_SENSORS: usize = 8;
 
+use crate::units::Seconds;
+
 /// One reading of one channel's force sensors, in newtons, without allocation.
 ///
 /// Fixed capacity so that it can cross a lock-free queue to the audio thread by value.
+///
+/// A reading may carry its *sensor time* ([`at`](Self::at)): when the sensors were read,
+/// in seconds on the sensor's own clock (a track's `time_s`, a replay's clock). The engine
+/// measures a step's loading rate from these times and schedules the reading on its frame
+/// clock by them, so neither depends on when the reading happened to reach the audio
+/// thread (see [`crate::engine`], *Timing*). A reading without one is timed by its arrival.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SensorReading {
     values: [f32; MAX_SENSORS],
     len: u8,
+    time: Option<f64>,
 }
 
 impl SensorReading {
@@ -48,6 +57,7 @@ impl SensorReading {
         Some(Self {
             values: v,
             len: values.len() as u8,
+            time: None,
         })
     }
 
@@ -56,7 +66,26 @@ impl SensorReading {
     pub fn single(newtons: f32) -> Self {
         let mut values = [0.0; MAX_SENSORS];
         values[0] = newtons;
-        Self { values, len: 1 }
+        Self {
+            values,
+            len: 1,
+            time: None,
+        }
+    }
+
+    /// The same reading, stamped with its sensor time.
+    #[must_use]
+    pub fn at(self, time: Seconds) -> Self {
+        Self {
+            time: Some(time.0),
+            ..self
+        }
+    }
+
+    /// When the sensors were read, on the sensor's clock, if the source knows.
+    #[must_use]
+    pub fn time(&self) -> Option<Seconds> {
+        self.time.map(Seconds)
     }
 
     /// The sensors' values in newtons.
@@ -84,9 +113,9 @@ impl SensorReading {
         self.as_slice().iter().sum()
     }
 
-    /// Whether every value is finite.
+    /// Whether every value, and the sensor time if there is one, is finite.
     #[must_use]
     pub fn is_finite(&self) -> bool {
-        self.as_slice().iter().all(|v| v.is_finite())
+        self.as_slice().iter().all(|v| v.is_finite()) && self.time.is_none_or(f64::is_finite)
     }
 }

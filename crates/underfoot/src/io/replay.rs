@@ -9,12 +9,19 @@
 //!
 //! Times are measured from one [`Instant`], not summed from row to row, so the error of each
 //! sleep does not accumulate over a long track.
+//!
+//! Every reading is stamped with its row's time over the speed as its sensor time
+//! ([`SensorReading::at`](crate::force::SensorReading::at)): the time at which the replayed foot produced it. The engine
+//! times the step's loading rate and the reading's frame by that, not by when the poll
+//! happened to hand it over (see [`crate::engine`], *Timing*), so a replay plays like an
+//! offline render of the same track.
 
 use std::time::{Duration, Instant};
 
 use super::{EventSource, IoError, SourceState, SourceStats};
 use crate::engine::Event;
 use crate::force::track::ForceTrack;
+use crate::units::Seconds;
 
 /// A force track as an [`EventSource`].
 #[derive(Debug, Clone)]
@@ -22,6 +29,7 @@ pub struct ReplaySource {
     track: ForceTrack,
     /// When each row is due, from the start, at the replay speed.
     due: Vec<Duration>,
+    speed: f64,
     next: usize,
     start: Option<Instant>,
     stats: SourceStats,
@@ -82,6 +90,7 @@ impl ReplaySource {
         Ok(Self {
             track,
             due,
+            speed,
             next: 0,
             start: None,
             stats: SourceStats::default(),
@@ -111,14 +120,16 @@ impl ReplaySource {
     /// Hands over every row due by `elapsed`.
     fn emit_due(&mut self, elapsed: Duration, out: &mut dyn FnMut(Event)) {
         while self.next < self.due.len() && self.due[self.next] <= elapsed {
-            for (channel, reading) in self.track.rows[self.next].readings.iter().enumerate() {
+            let row = &self.track.rows[self.next];
+            let time = Seconds(row.time.0 / self.speed);
+            for (channel, reading) in row.readings.iter().enumerate() {
                 // Channel counts above u16 were refused in `new`.
                 let Ok(channel) = u16::try_from(channel) else {
                     break;
                 };
                 out(Event::Force {
                     channel,
-                    reading: *reading,
+                    reading: reading.at(time),
                 });
                 self.stats.events += 1;
             }
@@ -154,7 +165,6 @@ mod tests {
     use super::*;
     use crate::force::SensorReading;
     use crate::force::track::{ChannelSensors, ForceRow};
-    use crate::units::Seconds;
 
     /// Two channels of heel and toe; row `i` at `i * step` seconds reads `i` on every sensor
     /// of channel 0 and `-i` on channel 1, so order can be checked from the values.
@@ -195,20 +205,23 @@ mod tests {
         (events, start.elapsed())
     }
 
-    fn check_order(events: &[(Duration, Event)], rows: usize) {
+    /// Checks the rows' order and values, and that each reading carries its row's time
+    /// (`step` seconds apart in the track) over the speed.
+    fn check_order(events: &[(Duration, Event)], rows: usize, step: f64, speed: f64) {
         assert_eq!(events.len(), 2 * rows);
         for (i, pair) in events.chunks(2).enumerate() {
             let v = i as f32;
+            let t = Seconds(i as f64 * step / speed);
             assert_eq!(
                 [pair[0].1, pair[1].1],
                 [
                     Event::Force {
                         channel: 0,
-                        reading: SensorReading::new(&[v, v]).unwrap()
+                        reading: SensorReading::new(&[v, v]).unwrap().at(t)
                     },
                     Event::Force {
                         channel: 1,
-                        reading: SensorReading::new(&[-v, -v]).unwrap()
+                        reading: SensorReading::new(&[-v, -v]).unwrap().at(t)
                     }
                 ],
                 "row {i}"
@@ -223,7 +236,7 @@ mod tests {
         assert_eq!(source.duration(), Duration::from_millis(300));
         let (events, took) = replay(&mut source);
         eprintln!("replay at 1x: 0.300 s track took {took:?}");
-        check_order(&events, 31);
+        check_order(&events, 31, 0.01, 1.0);
         assert!(
             took >= Duration::from_millis(300) && took <= Duration::from_millis(330),
             "{took:?}"
@@ -251,7 +264,7 @@ mod tests {
         let mut source = ReplaySource::new(track(31, 0.01), 10.0).unwrap();
         let (events, took) = replay(&mut source);
         eprintln!("replay at 10x: 0.300 s track took {took:?}");
-        check_order(&events, 31);
+        check_order(&events, 31, 0.01, 10.0);
         assert!(
             took >= Duration::from_millis(30) && took <= Duration::from_millis(45),
             "{took:?}"
