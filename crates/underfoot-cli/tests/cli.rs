@@ -35,6 +35,7 @@ fn model(name: &str, strikes: usize) -> MaterialModel {
             nrmse: 0.0488,
             lsd_db: 0.42,
             method: "hand-built".to_string(),
+            poor_fit: false,
             strikes,
             fit_seconds: 1.5,
         },
