@@ -215,21 +215,15 @@ fn bar(len: u64, template: &str) -> ProgressBar {
 }
 
 /// The library's refusal, with the option that changes it where there is one.
-fn with_flag_hint(e: BuildError, cfg: &BuildConfig) -> anyhow::Error {
+fn with_flag_hint(e: BuildError) -> anyhow::Error {
     let hint = match &e {
-        BuildError::Quality(QualityError::PoorFit { .. }) => Some(
-            "; --order or --max-order for another order, --band for a narrower band, or \
-             --accept-poor-fit to keep it (marked as poor in the library)"
-                .to_string(),
-        ),
+        BuildError::Quality(QualityError::PoorFit { .. }) => {
+            Some(" (--order or --max-order, --band, or --accept-poor-fit)".to_string())
+        }
         BuildError::Quality(
             QualityError::BandAboveNyquist { suggested, .. }
             | QualityError::BandAboveAnalysisNyquist { suggested, .. },
         ) => Some(format!(" (--band {}:{})", suggested.lo.0, suggested.hi.0)),
-        BuildError::Quality(QualityError::NoClearStrike { .. }) => Some(format!(
-            " (the threshold is {} dB)",
-            cfg.quality.min_strike_to_noise.0
-        )),
         _ => None,
     };
     match hint {
@@ -300,7 +294,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         }
         _ => {}
     })
-    .map_err(|e| with_flag_hint(e, &cfg))
+    .map_err(with_flag_hint)
     .with_context(|| format!("fitting material {:?}", args.material))?;
     let elapsed = started.elapsed().as_secs_f64();
     fitting.finish_and_clear();
