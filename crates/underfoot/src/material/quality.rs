@@ -495,7 +495,9 @@ pub fn check_recordings(
     let several = recordings.len() > 1;
     let failed: Vec<StrikeToNoise> = strike_to_noise_all
         .iter()
-        .filter(|s| !(s.snr.0 >= cfg.min_strike_to_noise.0) || (several && s.strikes == 0))
+        .filter(|s| {
+            s.snr.0.is_nan() || s.snr.0 < cfg.min_strike_to_noise.0 || (several && s.strikes == 0)
+        })
         .cloned()
         .collect();
     if !failed.is_empty() {
