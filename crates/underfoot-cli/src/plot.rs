@@ -954,6 +954,7 @@ mod tests {
             nrmse: 0.01,
             lsd_db: 0.2,
             method: "test".into(),
+            poor_fit: false,
             strikes: 4,
             fit_seconds: 1.0,
             longest_decay: underfoot::units::Seconds(0.5),

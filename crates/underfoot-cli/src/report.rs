@@ -8,9 +8,15 @@
 //!                    "sources": [ { "file": "gravel-01.wav", "sha256": "..." } ] } ] }
 //! ```
 //!
-//! One entry per material fitted by the run that wrote it.
+//! One entry per material fitted by the run that wrote it. `poor_fit` is true when the fit
+//! was above the quality bound and kept with `--accept-poor-fit`. `strike_to_noise_db` gives
+//! each recording's strike-to-noise ratio, and `leave_one_out` the generalisation check
+//! (see `underfoot::material::quality`): per recording left out, the gain-aligned LSD of
+//! the model fitted on the others against it (`lsd_db`) and of the model fitted on all
+//! (`in_sample_lsd_db`), and their means; `null` with a single recording.
 
 use serde::Serialize;
+use underfoot::material::quality::LeaveOneOut;
 use underfoot::material::{MaterialModel, SourceFile};
 use underfoot::units::{Band, SampleRate};
 
@@ -32,6 +38,94 @@ pub struct FitReportEntry<'a> {
     pub strikes: usize,
     pub method: &'a str,
     pub sources: &'a [SourceFile],
+    pub poor_fit: bool,
+    pub strike_to_noise_db: Vec<RecordingFigure>,
+    pub leave_one_out: Option<LeaveOneOutReport>,
+}
+
+/// One recording's figure in a [`FitReportEntry`].
+#[derive(Debug, Serialize)]
+pub struct RecordingFigure {
+    pub file: String,
+    pub db: f64,
+}
+
+/// The leave-one-recording-out figures of a [`FitReportEntry`].
+#[derive(Debug, Serialize)]
+pub struct LeaveOneOutReport {
+    pub held_out: Vec<HeldOutReport>,
+    pub mean_lsd_db: f64,
+    pub mean_in_sample_lsd_db: f64,
+}
+
+/// One recording left out.
+#[derive(Debug, Serialize)]
+pub struct HeldOutReport {
+    pub file: String,
+    pub strikes: usize,
+    pub order: usize,
+    pub lsd_db: f64,
+    pub in_sample_lsd_db: f64,
+    pub gain_db: f64,
+}
+
+impl LeaveOneOutReport {
+    pub fn of(loo: &LeaveOneOut) -> Self {
+        Self {
+            held_out: loo
+                .held_out
+                .iter()
+                .map(|h| HeldOutReport {
+                    file: h.file.clone(),
+                    strikes: h.strikes,
+                    order: h.order,
+                    lsd_db: h.lsd.0,
+                    in_sample_lsd_db: h.in_sample_lsd.0,
+                    gain_db: h.gain.0,
+                })
+                .collect(),
+            mean_lsd_db: loo.mean_lsd().0,
+            mean_in_sample_lsd_db: loo.mean_in_sample_lsd().0,
+        }
+    }
+}
+
+/// The leave-one-out table printed by `fit --report`.
+pub fn leave_one_out_table(loo: &LeaveOneOut) -> String {
+    use Align::{Left, Right};
+    let mut rows: Vec<Vec<String>> = loo
+        .held_out
+        .iter()
+        .map(|h| {
+            vec![
+                h.file.clone(),
+                h.strikes.to_string(),
+                h.order.to_string(),
+                format!("{:.2}", h.lsd.0),
+                format!("{:.2}", h.in_sample_lsd.0),
+                format!("{:+.1}", h.gain.0),
+            ]
+        })
+        .collect();
+    rows.push(vec![
+        "mean".to_string(),
+        String::new(),
+        String::new(),
+        format!("{:.2}", loo.mean_lsd().0),
+        format!("{:.2}", loo.mean_in_sample_lsd().0),
+        String::new(),
+    ]);
+    table(
+        &[
+            ("left out", Left),
+            ("strikes", Right),
+            ("order", Right),
+            ("LSD dB", Right),
+            ("in-sample dB", Right),
+            ("gain dB", Right),
+        ],
+        &rows,
+    )
 }
 
 impl<'a> FitReportEntry<'a> {
@@ -45,6 +139,9 @@ impl<'a> FitReportEntry<'a> {
             strikes: m.fit.strikes,
             method: &m.fit.method,
             sources: &m.sources,
+            poor_fit: m.fit.poor_fit,
+            strike_to_noise_db: Vec::new(),
+            leave_one_out: None,
         }
     }
 }
@@ -59,6 +156,7 @@ pub struct ListEntry<'a> {
     pub nrmse: f64,
     pub lsd_db: f64,
     pub strikes: usize,
+    pub poor_fit: bool,
 }
 
 impl<'a> ListEntry<'a> {
@@ -71,6 +169,7 @@ impl<'a> ListEntry<'a> {
             nrmse: m.fit.nrmse,
             lsd_db: m.fit.lsd_db,
             strikes: m.fit.strikes,
+            poor_fit: m.fit.poor_fit,
         }
     }
 }
@@ -113,7 +212,11 @@ pub fn table(headers: &[(&str, Align)], rows: &[Vec<String>]) -> String {
     out
 }
 
-/// The `library list` table: name, rate, band, order, NRMSE, LSD dB, strikes.
+/// What marks a poor fit kept with `--accept-poor-fit` in the tables.
+pub const POOR_MARK: &str = "POOR";
+
+/// The `library list` table: name, rate, band, order, NRMSE, LSD dB, strikes; a poor fit
+/// kept on request has its LSD marked, and a note under the table says what that means.
 pub fn list_table(models: &[MaterialModel]) -> String {
     use Align::{Left, Right};
     let rows: Vec<Vec<String>> = models
@@ -125,12 +228,16 @@ pub fn list_table(models: &[MaterialModel]) -> String {
                 format!("{}-{}", m.band_hz.lo.0, m.band_hz.hi.0),
                 m.order.to_string(),
                 format!("{:.4}", m.fit.nrmse),
-                format!("{:.2}", m.fit.lsd_db),
+                if m.fit.poor_fit {
+                    format!("{:.2} {POOR_MARK}", m.fit.lsd_db)
+                } else {
+                    format!("{:.2}", m.fit.lsd_db)
+                },
                 m.fit.strikes.to_string(),
             ]
         })
         .collect();
-    table(
+    let mut out = table(
         &[
             ("name", Left),
             ("rate Hz", Right),
@@ -141,7 +248,13 @@ pub fn list_table(models: &[MaterialModel]) -> String {
             ("strikes", Right),
         ],
         &rows,
-    )
+    );
+    if models.iter().any(|m| m.fit.poor_fit) {
+        out.push_str(&format!(
+            "{POOR_MARK}: a poor fit, above the quality bound, kept with --accept-poor-fit\n"
+        ));
+    }
+    out
 }
 
 /// The fit table of the paper's Table I, one row per material.

@@ -35,6 +35,7 @@ fn model(name: &str, strikes: usize) -> MaterialModel {
             nrmse: 0.0488,
             lsd_db: 0.42,
             method: "hand-built".to_string(),
+            poor_fit: false,
             strikes,
             fit_seconds: 1.5,
             longest_decay: underfoot::units::Seconds(0.5),
@@ -1255,4 +1256,206 @@ fn export_writes_a_c_header_and_refuses_what_fails_the_check() {
     assert!(e.contains("Q15") && e.contains(" Hz"), "{e}");
     // The failed export left the earlier header in place.
     assert_eq!(fs::read_to_string(&out).unwrap(), header);
+}
+
+/// The four meaningless fits: a 1 Hz WAV, a WAV of nothing but +-1 LSB, a CSV
+/// logged at 1000 Hz fitted over the default 20-900 Hz band, and a fit of order 1 to a
+/// recording with two resonances. Each is refused with a message that says why and what to
+/// do, exits 1, and writes nothing: the library byte for byte as it was, no report.
+#[test]
+fn fit_refuses_meaningless_models_and_keeps_library() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (lib, before) = existing_library(dir.path());
+    let p = |n: &str| dir.path().join(n);
+
+    let mut rng = underfoot::signal::noise::SplitMix64::new(0x51);
+    let one_hz: Vec<f64> = (0..20).map(|_| 0.5 * rng.symmetric()).collect();
+    write_wav_i16(&p("one-hz.wav"), 1, &one_hz);
+    let lsb: Vec<f64> = (0..16000)
+        .map(|_| ((rng.uniform() * 3.0).floor() - 1.0) / 32767.0)
+        .collect();
+    write_wav_i16(&p("lsb.wav"), 8000, &lsb);
+    let logged: String = strikes(1000)
+        .iter()
+        .enumerate()
+        .map(|(i, v)| format!("{i},{v}\n"))
+        .collect();
+    fs::write(p("log.csv"), format!("t,accel\n{logged}")).expect("write");
+    write_wav_i16(&p("steps.wav"), 8000, &strikes(8000));
+
+    let report = p("report.json");
+    let cases: [(&str, &[&str], &[&str]); 4] = [
+        (
+            "one-hz.wav",
+            &[],
+            &["1 Hz", "too low a sample rate", "100 Hz"],
+        ),
+        (
+            "lsb.wav",
+            &[],
+            &["no heel strike stands clearly above the noise", "dB short"],
+        ),
+        (
+            "log.csv",
+            &["--csv-column", "accel", "--csv-rate", "1000"],
+            &["above the Nyquist frequency", "1000 Hz", "--band 20:450"],
+        ),
+        (
+            "steps.wav",
+            &["--order", "1"],
+            &["too far from the measured response", "--accept-poor-fit"],
+        ),
+    ];
+    for (name, extra, expected) in cases {
+        let mut args = vec![
+            "fit",
+            "--material",
+            "bad",
+            "--out",
+            s(&lib),
+            "--report",
+            s(&report),
+        ];
+        args.extend_from_slice(extra);
+        let file = p(name);
+        args.push(s(&file));
+        let e = assert_error(&run(&args));
+        if name != "steps.wav" {
+            assert!(e.contains(name), "{name}: error must name the file: {e}");
+        }
+        for x in expected {
+            assert!(e.contains(x), "{name}: error must say {x:?}: {e}");
+        }
+        assert_eq!(
+            fs::read(&lib).expect("read"),
+            before,
+            "{name}: library changed"
+        );
+        assert!(!report.exists(), "{name}: report written");
+    }
+}
+
+/// `--accept-poor-fit` keeps the order-1 fit, warns, and marks it in the library, where
+/// `library list` and `show` (text and JSON) say so; a good fit is not marked.
+#[test]
+fn accept_poor_fit_keeps_it_marked() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (lib, _) = existing_library(dir.path());
+    let wav = dir.path().join("steps.wav");
+    write_wav_i16(&wav, 8000, &strikes(8000));
+    let o = run(&[
+        "fit",
+        "--material",
+        "rough",
+        "--out",
+        s(&lib),
+        "--order",
+        "1",
+        "--accept-poor-fit",
+        s(&wav),
+    ]);
+    assert_ok(&o);
+    assert!(
+        stderr(&o).contains("warning: \"rough\" is a poor fit"),
+        "{}",
+        stderr(&o)
+    );
+    let library = Library::load(&lib).expect("library");
+    assert!(library.get("rough").expect("kept").fit.poor_fit);
+    assert!(!library.get("gravel").expect("kept").fit.poor_fit);
+
+    let list = stdout(&run(&["library", "list", "--library", s(&lib)]));
+    let rough = list
+        .lines()
+        .find(|l| l.starts_with("rough"))
+        .expect("listed");
+    assert!(rough.contains("POOR"), "{list}");
+    assert!(
+        !list
+            .lines()
+            .any(|l| l.starts_with("gravel") && l.contains("POOR"))
+    );
+    assert!(list.contains("--accept-poor-fit"), "{list}");
+    let json: serde_json::Value = serde_json::from_str(&stdout(&run(&[
+        "library",
+        "list",
+        "--library",
+        s(&lib),
+        "--json",
+    ])))
+    .expect("json");
+    assert_eq!(json[1]["name"], "rough");
+    assert_eq!(json[1]["poor_fit"], true);
+    assert_eq!(json[0]["poor_fit"], false);
+    let show = stdout(&run(&["library", "show", "rough", "--library", s(&lib)]));
+    assert!(show.contains("POOR FIT"), "{show}");
+}
+
+/// `fit --report` on gravel's three recordings prints the leave-one-recording-out table
+/// and writes it into the report; with one recording it says why there is none.
+#[test]
+fn fit_report_gives_leave_one_out_on_gravel() {
+    let Some(data) = footsteps_dir() else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let lib = dir.path().join("lib.json");
+    let report = dir.path().join("report.json");
+    let gravel: Vec<String> = (1..=3)
+        .map(|i| {
+            data.join(format!("gravel/default_gravel_footstep.{i}.ogg"))
+                .to_string_lossy()
+                .into_owned()
+        })
+        .collect();
+    let mut args = vec!["fit", "--material", "gravel", "--out", s(&lib)];
+    args.extend(["--report", s(&report)]);
+    args.extend(gravel.iter().map(String::as_str));
+    let o = run(&args);
+    assert_ok(&o);
+    let out = stdout(&o);
+    assert!(out.contains("leave one recording out"), "{out}");
+    for i in 1..=3 {
+        assert!(
+            out.lines()
+                .any(|l| l.starts_with(&format!("default_gravel_footstep.{i}.ogg"))),
+            "{out}"
+        );
+    }
+    assert!(out.lines().any(|l| l.starts_with("mean")), "{out}");
+    let r: serde_json::Value =
+        serde_json::from_slice(&fs::read(&report).expect("report")).expect("json");
+    let loo = &r["materials"][0]["leave_one_out"];
+    let held = loo["held_out"].as_array().expect("held out");
+    assert_eq!(held.len(), 3);
+    for h in held {
+        let lsd = h["lsd_db"].as_f64().expect("number");
+        assert!(lsd > 0.0 && lsd < 10.0, "{h}");
+    }
+    let mean = loo["mean_lsd_db"].as_f64().expect("mean");
+    let in_sample = loo["mean_in_sample_lsd_db"].as_f64().expect("mean");
+    assert!(in_sample <= mean, "{loo}");
+    assert_eq!(
+        r["materials"][0]["strike_to_noise_db"]
+            .as_array()
+            .expect("figures")
+            .len(),
+        3
+    );
+
+    let o = run(&[
+        "fit",
+        "--material",
+        "gravel1",
+        "--out",
+        s(&lib),
+        "--report",
+        s(&report),
+        &gravel[0],
+    ]);
+    assert_ok(&o);
+    assert!(stdout(&o).contains("not possible"), "{}", stdout(&o));
+    let r: serde_json::Value =
+        serde_json::from_slice(&fs::read(&report).expect("report")).expect("json");
+    assert!(r["materials"][0]["leave_one_out"].is_null());
 }

@@ -420,6 +420,7 @@ fn the_limiter_holds_against_a_pathological_filter() {
             nrmse: 0.0,
             lsd_db: 0.0,
             method: String::new(),
+            poor_fit: false,
             strikes: 0,
             fit_seconds: 0.0,
             longest_decay: underfoot::units::Seconds(0.5),

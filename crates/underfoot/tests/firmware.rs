@@ -377,6 +377,7 @@ fn small_library() -> underfoot::material::Library {
             nrmse: 0.0,
             lsd_db: 0.0,
             method: "hand-built".to_string(),
+            poor_fit: false,
             strikes: 1,
             fit_seconds: 0.0,
             longest_decay: underfoot::units::Seconds(0.5),

@@ -3,6 +3,12 @@
 //! Everything that can be checked without the recordings (arguments, the `--out` library,
 //! output directories) is checked before the slow fit, and the library is only ever
 //! replaced atomically after a successful fit: a failed run leaves `--out` as it was.
+//!
+//! The quality gate (`underfoot::material::quality`) refuses recordings at a rate too low
+//! for the band, a band above a recording's Nyquist frequency, recordings with no strike
+//! clearly above their noise, and a fit above the distance bound; `--accept-poor-fit` keeps
+//! the last, marked in the library. Recordings that disagree are a warning on stderr.
+//! `--report` adds the leave-one-recording-out check, printed and in the report file.
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -15,14 +21,17 @@ use underfoot::analysis::SavgolSetting;
 use underfoot::atomic_file::write_atomic;
 use underfoot::fit::OrderChoice;
 use underfoot::material::Library;
-use underfoot::material::build::{BuildConfig, Progress, build_material};
+use underfoot::material::build::{BuildConfig, BuildError, Progress, build_material};
 use underfoot::material::library::validate_name;
+use underfoot::material::quality::{Disagreement, QualityError, leave_one_out};
 use underfoot::recording::{self, CsvSpec};
 use underfoot::units::{Band, Decibels, SampleRate};
 
 use crate::output::emit;
 use crate::plot::{self, Omitted, Panel};
-use crate::report::{FitReport, FitReportEntry};
+use crate::report::{
+    FitReport, FitReportEntry, LeaveOneOutReport, RecordingFigure, leave_one_out_table,
+};
 
 /// Arguments of `underfoot fit`.
 #[derive(Debug, Args)]
@@ -34,7 +43,9 @@ pub struct FitArgs {
     /// Library file to add the material to (created if missing).
     #[arg(long, value_name = "LIB.json")]
     out: PathBuf,
-    /// Also write a JSON summary of the fit here.
+    /// Also write a JSON summary of the fit here, and check how the model generalises:
+    /// fit on all recordings but one, measure on the one left out, for each in turn
+    /// (printed as a table, and in the summary).
     #[arg(long, value_name = "R.json")]
     report: Option<PathBuf>,
     /// Also draw measured vs model magnitude here (.svg or .png).
@@ -64,6 +75,10 @@ pub struct FitArgs {
     /// search never leaves it and the library stores it [default: 0.5].
     #[arg(long, value_name = "S", value_parser = parse_decay)]
     longest_decay: Option<f64>,
+    /// Keep a fit whose distance is above the quality bound (LSD above 2 dB, or NRMSE above
+    /// 0.5 with LSD above 1 dB) instead of refusing it; it is marked as poor in the library.
+    #[arg(long)]
+    accept_poor_fit: bool,
     /// For CSV recordings: the column holding the signal (header name or 0-based index).
     #[arg(long, value_name = "C", requires = "csv_rate")]
     csv_column: Option<String>,
@@ -170,6 +185,7 @@ impl FitArgs {
         if let Some(t) = self.target_lsd {
             cfg.fit.target_lsd = Decibels(t);
         }
+        cfg.quality.accept_poor_fit = self.accept_poor_fit;
         Ok(cfg)
     }
 
@@ -214,6 +230,24 @@ fn bar(len: u64, template: &str) -> ProgressBar {
     bar
 }
 
+/// The library's refusal, with the option that changes it where there is one.
+fn with_flag_hint(e: BuildError) -> anyhow::Error {
+    let hint = match &e {
+        BuildError::Quality(QualityError::PoorFit { .. }) => {
+            Some(" (--order or --max-order, --band, or --accept-poor-fit)".to_string())
+        }
+        BuildError::Quality(
+            QualityError::BandAboveNyquist { suggested, .. }
+            | QualityError::BandAboveAnalysisNyquist { suggested, .. },
+        ) => Some(format!(" (--band {}:{})", suggested.lo.0, suggested.hi.0)),
+        _ => None,
+    };
+    match hint {
+        Some(h) => anyhow::anyhow!("{e}{h}"),
+        None => e.into(),
+    }
+}
+
 /// Runs `underfoot fit`.
 pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     validate_name(&args.material).map_err(|e| anyhow::anyhow!("--material: {e}"))?;
@@ -246,7 +280,14 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     // The order search bisects, so orders arrive out of sequence: count fits, not orders.
     let fitting = bar(0, "fitting  {spinner} {pos} orders tried {msg}");
     let started = Instant::now();
+    let mut checked = None;
     let model = build_material(&args.material, &recordings, &cfg, &mut |p| match p {
+        Progress::Checked(c) => {
+            if let Some(w) = c.disagreement.as_ref().and_then(Disagreement::warning) {
+                fitting.suspend(|| eprintln!("underfoot: warning: {:?}: {w}", args.material));
+            }
+            checked = Some(c.clone());
+        }
         Progress::Measured { strikes, .. } => fitting.set_message(format!("{strikes} strikes")),
         Progress::OrderTried {
             order,
@@ -269,9 +310,29 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         }
         _ => {}
     })
+    .map_err(with_flag_hint)
     .with_context(|| format!("fitting material {:?}", args.material))?;
     let elapsed = started.elapsed().as_secs_f64();
     fitting.finish_and_clear();
+    if model.fit.poor_fit {
+        eprintln!(
+            "underfoot: warning: {:?} is a poor fit (LSD {:.2} dB, NRMSE {:.3}, above the quality \
+             bound), kept because of --accept-poor-fit and marked as poor in {}",
+            model.name,
+            model.fit.lsd_db,
+            model.fit.nrmse,
+            args.out.display()
+        );
+    }
+    // The generalisation check runs before anything is written: a failure here leaves
+    // --out as it was, like any other.
+    let loo = if args.report.is_some() {
+        let loo = leave_one_out(&recordings, &cfg, &model)
+            .with_context(|| format!("leave-one-out check of {:?}", args.material))?;
+        Some(loo)
+    } else {
+        None
+    };
 
     let replaced = library.upsert(model.clone()).is_some();
     library.save(&args.out)?;
@@ -297,9 +358,34 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
 
     // The library is saved by now; what follows is extra, and its errors say so.
     let saved = || format!("(the material was saved to {})", args.out.display());
+    if let Some(loo) = &loo {
+        match loo {
+            Some(loo) => emit(&format!(
+                "leave one recording out ({}: fitted on the others, gain-aligned LSD on the one \
+                 left out; in-sample: the model fitted on all):\n{}",
+                model.name,
+                leave_one_out_table(loo)
+            ))?,
+            None => emit(&format!(
+                "leave one recording out: not possible for {} with a single recording; fit \
+                 two or more to see how the model generalises\n",
+                model.name
+            ))?,
+        }
+    }
     if let Some(path) = &args.report {
+        let mut entry = FitReportEntry::of(&model);
+        entry.strike_to_noise_db = checked
+            .iter()
+            .flat_map(|c| &c.strike_to_noise)
+            .map(|s| RecordingFigure {
+                file: s.file.clone(),
+                db: s.snr.0,
+            })
+            .collect();
+        entry.leave_one_out = loo.flatten().as_ref().map(LeaveOneOutReport::of);
         let report = FitReport {
-            materials: vec![FitReportEntry::of(&model)],
+            materials: vec![entry],
         };
         let mut json = serde_json::to_string_pretty(&report)?;
         json.push('\n');

@@ -130,6 +130,12 @@ fn describe(m: &MaterialModel) -> String {
         m.fit.lsd_db,
         m.fit.grid_hz.len()
     );
+    if m.fit.poor_fit {
+        let _ = writeln!(
+            s,
+            "  quality      POOR FIT: above the quality bound, kept with --accept-poor-fit"
+        );
+    }
     let _ = writeln!(
         s,
         "  evidence     {} strikes, {:.1} s, method {}",

@@ -12,6 +12,7 @@ use std::time::Instant;
 use crate::analysis::{AnalysisConfig, AnalysisError, MeasuredResponse, measure};
 use crate::fit::{FitConfig, FitError, MetricGrid, Metrics, Target, fit};
 use crate::material::library::validate_name;
+use crate::material::quality::{self, QualityConfig, QualityError, RecordingsQuality};
 use crate::material::{FilterCoefficients, FitRecord, MaterialModel, SourceFile};
 use crate::physical::{CalibrationConfig, GroundKind, calibrate};
 use crate::recording::Recording;
@@ -28,6 +29,8 @@ pub struct BuildConfig {
     /// The physical model's calibration from the same recordings (its `analysis` is
     /// replaced by the one above); `None` to skip it.
     pub physical: Option<CalibrationConfig>,
+    /// What the build refuses and warns about ([`super::quality`]).
+    pub quality: QualityConfig,
 }
 
 impl Default for BuildConfig {
@@ -36,6 +39,7 @@ impl Default for BuildConfig {
             analysis: AnalysisConfig::default(),
             fit: FitConfig::default(),
             physical: Some(CalibrationConfig::default()),
+            quality: QualityConfig::default(),
         }
     }
 }
@@ -67,6 +71,9 @@ pub enum Progress {
         /// Its log-spectral distance in dB.
         lsd_db: f64,
     },
+    /// The recordings passed the quality gate: what it measured (strike-to-noise ratios,
+    /// and whether the recordings disagree, which is a warning, not a refusal).
+    Checked(RecordingsQuality),
     /// The physical model could not be calibrated; the material has only its filter.
     PhysicalFailed {
         /// Why.
@@ -92,6 +99,9 @@ pub enum BuildError {
     /// The response could not be fitted.
     #[error(transparent)]
     Fit(#[from] FitError),
+    /// The recordings or the fit failed the quality gate ([`super::quality`]).
+    #[error(transparent)]
+    Quality(#[from] QualityError),
 }
 
 /// Fits a material model to recordings of heel strikes on it.
@@ -135,6 +145,14 @@ pub fn build_material_with_report(
     })?;
     let started = Instant::now();
     let a = &cfg.analysis;
+    if cfg.quality.check_recordings {
+        quality::check_rates(recordings, a)?;
+        progress(&Progress::Checked(quality::check_recordings(
+            recordings,
+            a,
+            &cfg.quality,
+        )?));
+    }
     let measured = measure(recordings, a)?;
     progress(&Progress::Measured {
         strikes: measured.strikes.len(),
@@ -173,6 +191,7 @@ pub fn build_material_with_report(
             nrmse: best.metrics.nrmse,
             lsd_db: best.metrics.lsd_db,
             method: best.method.clone(),
+            poor_fit: false,
             strikes: measured.strikes.len(),
             fit_seconds: started.elapsed().as_secs_f64(),
             longest_decay: cfg.fit.longest_decay,
@@ -194,6 +213,7 @@ pub fn build_material_with_report(
         physical: None,
     };
     let mut model = model;
+    quality::check_fit(model.order, &mut model.fit, &cfg.quality)?;
     if let Some(cal) = &cfg.physical {
         let cal = CalibrationConfig {
             analysis: a.clone(),

@@ -680,6 +680,7 @@ mod tests {
                 nrmse: 0.0,
                 lsd_db: 0.0,
                 method: "hand".to_string(),
+                poor_fit: false,
                 strikes: 3,
                 fit_seconds: 0.5,
                 longest_decay: crate::units::Seconds(0.5),

@@ -7,6 +7,7 @@ pub mod build;
 pub mod builtin;
 pub mod library;
 pub mod model;
+pub mod quality;
 
 pub use library::{FORMAT, Library, LibraryError};
 pub use model::{FilterCoefficients, FitRecord, MaterialModel, SourceFile};

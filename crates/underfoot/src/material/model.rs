@@ -79,6 +79,10 @@ pub struct FitRecord {
     /// How the winning fit was found (e.g. `vector-fit+gauss-newton(log)`).
     #[serde(default)]
     pub method: String,
+    /// The fit is above the quality bound ([`super::quality`]) and was kept on request
+    /// (`fit --accept-poor-fit`). Absent, and false, for every fit that passed.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub poor_fit: bool,
     /// Number of heel strikes averaged into the measured response.
     #[serde(default)]
     pub strikes: usize,
@@ -101,6 +105,11 @@ pub const LEGACY_DECAY: Seconds = Seconds(0.5);
 
 fn legacy_decay() -> Seconds {
     LEGACY_DECAY
+}
+
+#[allow(clippy::trivially_copy_pass_by_ref)] // serde's skip_serializing_if passes a reference
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 /// One recording a model was fitted from.
