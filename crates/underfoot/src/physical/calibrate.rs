@@ -81,8 +81,17 @@
 //!    window all count), analysed exactly as the recordings were, and the output gain is
 //!    set so that the mean level in dB over the band equals the measurement's. What the
 //!    render still misses, `M(f) / R(f)`, multiplies the goal of the gain fit, and steps 7
-//!    and 8 run again (3 rounds); the round closest to the measurement is kept, and its
-//!    render at that gain gives the recorded NRMSE and log-spectral distance.
+//!    and 8 run again (`refine_rounds`, 1 by default: on the shared recordings a second
+//!    or third round never came out best, and each costs a render); the round closest to
+//!    the measurement is kept, and its render at that gain gives the recorded NRMSE and
+//!    log-spectral distance ([`score_render`] computes the same figure again).
+//!    The steps are independent draws, so the render runs in two halves on two threads
+//!    (the second half with its own random stream) and their strikes are pooled.
+//!
+//! **Cost.** The renders are most of it (a nominal step is a second at 48 kHz through
+//! 32 modes and four voices); the measurement is the IIR fit's, passed in by
+//! [`calibrate_measured`], and [`crate::material::build`] runs the calibration beside the
+//! IIR fit. `benches/calibration.rs` and `scripts/time-fit` measure it.
 //!
 //! On the shared recordings the calibrated models come within 0.8-2.1 dB (log-spectral
 //! distance) of the measurement in the calibration render, and 0.8-2.4 dB in a render with
