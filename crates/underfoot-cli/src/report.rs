@@ -5,10 +5,17 @@
 //! ```json
 //! { "materials": [ { "name": "gravel", "order": 8, "nrmse": 0.05, "lsd_db": 0.41,
 //!                    "fit_seconds": 3.2, "strikes": 12, "method": "...",
+//!                    "physical": { "kind": "aggregate", "modes": 32,
+//!                                  "nrmse": 0.6, "lsd_db": 1.3 },
 //!                    "sources": [ { "file": "gravel-01.wav", "sha256": "..." } ] } ] }
 //! ```
 //!
-//! One entry per material fitted by the run that wrote it. `poor_fit` is true when the fit
+//! One entry per material fitted by the run that wrote it. Every figure is the model's
+//! record, computed by `underfoot::fit::metrics` on the fit's 96-point grid: `nrmse` and
+//! `lsd_db` of the filter; `physical` (absent when the calibration failed) those of the
+//! physical model's calibration render, the same figures `compare` prints in its
+//! `phys NRMSE` and `LSD dB` columns.
+//! `poor_fit` is true when the fit
 //! was above the quality bound and kept with `--accept-poor-fit`. `strike_to_noise_db` gives
 //! each recording's strike-to-noise ratio, and `leave_one_out` the generalisation check
 //! (see `underfoot::material::quality`): per recording left out, the gain-aligned LSD of
@@ -37,6 +44,8 @@ pub struct FitReportEntry<'a> {
     pub fit_seconds: f64,
     pub strikes: usize,
     pub method: &'a str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub physical: Option<PhysicalReportEntry>,
     pub sources: &'a [SourceFile],
     pub poor_fit: bool,
     pub strike_to_noise_db: Vec<RecordingFigure>,
@@ -128,6 +137,15 @@ pub fn leave_one_out_table(loo: &LeaveOneOut) -> String {
     )
 }
 
+/// The physical model of a [`FitReportEntry`].
+#[derive(Debug, Serialize)]
+pub struct PhysicalReportEntry {
+    pub kind: &'static str,
+    pub modes: usize,
+    pub nrmse: f64,
+    pub lsd_db: f64,
+}
+
 impl<'a> FitReportEntry<'a> {
     pub fn of(m: &'a MaterialModel) -> Self {
         Self {
@@ -138,6 +156,12 @@ impl<'a> FitReportEntry<'a> {
             fit_seconds: m.fit.fit_seconds,
             strikes: m.fit.strikes,
             method: &m.fit.method,
+            physical: m.physical.as_ref().map(|p| PhysicalReportEntry {
+                kind: p.kind.name(),
+                modes: p.modes.len(),
+                nrmse: p.record.nrmse,
+                lsd_db: p.record.lsd_db,
+            }),
             sources: &m.sources,
             poor_fit: m.fit.poor_fit,
             strike_to_noise_db: Vec::new(),

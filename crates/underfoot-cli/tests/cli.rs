@@ -861,6 +861,72 @@ fn compare_prints_table_one_for_the_papers_five_materials() {
     assert!(err.contains("holds no recording"), "{err}");
 }
 
+/// `fit` and `compare` on the same recordings print the same figures for the same
+/// metric, and `compare`'s held-out figure is named apart from the calibration's.
+#[test]
+fn fit_and_compare_agree_on_the_same_recordings() {
+    let Some(data) = footsteps_dir() else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (lib, report, json) = (
+        dir.path().join("lib.json"),
+        dir.path().join("report.json"),
+        dir.path().join("table.json"),
+    );
+    let folder = data.join("gravel");
+    let mut files: Vec<PathBuf> = fs::read_dir(&folder)
+        .expect("gravel folder")
+        .map(|e| e.expect("entry").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "ogg"))
+        .collect();
+    files.sort();
+    let mut args = vec![
+        "fit".to_string(),
+        "--material".into(),
+        "gravel".into(),
+        "--out".into(),
+        lib.display().to_string(),
+        "--report".into(),
+        report.display().to_string(),
+    ];
+    args.extend(files.iter().map(|f| f.display().to_string()));
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let fitted = run(&args);
+    assert_ok(&fitted);
+    let pair = format!("gravel={}", folder.display());
+    let compared = run(&["compare", "--json", s(&json), &pair]);
+    assert_ok(&compared);
+
+    let read = |p: &Path| -> serde_json::Value {
+        serde_json::from_slice(&fs::read(p).expect("written")).expect("json")
+    };
+    let (r, t) = (read(&report), read(&json));
+    let (fit, cmp) = (&r["materials"][0], &t["materials"][0]);
+    for (a, b) in [
+        (&fit["lsd_db"], &cmp["iir"]["lsd_db"]),
+        (&fit["nrmse"], &cmp["iir"]["nrmse"]),
+        (&fit["physical"]["lsd_db"], &cmp["physical"]["lsd_db"]),
+        (&fit["physical"]["nrmse"], &cmp["physical"]["nrmse"]),
+    ] {
+        let (a, b) = (
+            a.as_f64().expect("fit figure"),
+            b.as_f64().expect("compare figure"),
+        );
+        assert_eq!(a, b, "fit {fit}\ncompare {cmp}");
+    }
+    // And as printed.
+    let lsd = fit["physical"]["lsd_db"].as_f64().expect("physical LSD");
+    let printed = format!("LSD {lsd:.2} dB (calibration render)");
+    assert!(stdout(&fitted).contains(&printed), "{}", stdout(&fitted));
+    assert!(stdout(&compared).contains(&format!("{lsd:.2}")));
+    let held_out = cmp["physical"]["held_out_lsd_db"]
+        .as_f64()
+        .expect("held-out");
+    assert!(held_out.is_finite() && held_out <= 3.0, "{held_out}");
+    assert!(stdout(&compared).contains("held-out"));
+}
+
 /// The README's compensation session on the simulated tile: measure, equalize, fit a
 /// user, tabulate users, and render through the compensation.
 #[test]

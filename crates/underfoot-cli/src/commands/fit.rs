@@ -338,7 +338,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     library.save(&args.out)?;
     let physical = model.physical.as_ref().map_or(String::new(), |p| {
         format!(
-            "; physical: {}, {} modes, LSD {:.2} dB",
+            "; physical: {}, {} modes, LSD {:.2} dB (calibration render)",
             p.kind.name(),
             p.modes.len(),
             p.record.lsd_db

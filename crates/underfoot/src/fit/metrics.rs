@@ -17,6 +17,25 @@
 //!
 //! With a 1 dB intensity JND, an LSD below 1 dB means the average level error is below what
 //! a person can tell apart.
+//!
+//! **Gain-aligned log-spectral distance**, for comparing shapes when the levels are not
+//! comparable (a spectrum of other strikes, another conditioning, an unnormalised DFT):
+//! the model is first moved by the uniform gain that best matches it in dB, which is the
+//! mean level difference
+//!
+//! $$ \bar d = \tfrac{1}{K} \sum_k 20 \log_{10} \frac{S_k}{M_k} , \qquad
+//!    \mathrm{LSD}_{aligned} = \sqrt{\tfrac{1}{K} \sum_k
+//!    \left(20 \log_{10} \frac{S_k}{M_k} - \bar d\right)^2 }
+//!    = \sqrt{\mathrm{LSD}^2 - \bar d^2} . $$
+//!
+//! (the mean minimises the RMS, so no other gain does better). A model whose level was
+//! set this way (the physical model's output gain, see [`crate::physical::calibrate()`])
+//! has `\bar d = 0` and both distances agree.
+//!
+//! These functions are the only definitions of the metrics: `fit`, `compare`, the
+//! physical calibration, the reports and the tests all call them, on the grid
+//! [`METRIC_POINTS`] log-spaced points of the band (`Band::log_grid`) unless said
+//! otherwise, so the same two curves give the same figure wherever it is printed.
 
 use serde::{Deserialize, Serialize};
 
@@ -73,6 +92,44 @@ pub fn lsd_db(measured: &[f64], model: &[f64]) -> f64 {
         .map(|(m, s)| (20.0 * (s / m).log10()).powi(2))
         .sum();
     (sum / measured.len().max(1) as f64).sqrt()
+}
+
+/// The mean level of `model` over `reference` in dB, `\bar d` of the module
+/// documentation: the uniform gain (in dB) that, taken off `model`, best matches it to
+/// `reference` in the log-spectral sense.
+///
+/// # Panics
+/// If the slices differ in length.
+#[must_use]
+pub fn level_offset_db(reference: &[f64], model: &[f64]) -> f64 {
+    assert_eq!(
+        reference.len(),
+        model.len(),
+        "reference and model on the same grid"
+    );
+    let sum: f64 = reference
+        .iter()
+        .zip(model)
+        .map(|(m, s)| 20.0 * (s / m).log10())
+        .sum();
+    sum / reference.len().max(1) as f64
+}
+
+/// The log-spectral distance in dB after the best uniform gain: how far the shapes of
+/// `model` and `reference` are apart, whatever their levels (see the module
+/// documentation).
+///
+/// # Panics
+/// If the slices differ in length.
+#[must_use]
+pub fn gain_aligned_lsd_db(reference: &[f64], model: &[f64]) -> f64 {
+    let offset = level_offset_db(reference, model);
+    let sum: f64 = reference
+        .iter()
+        .zip(model)
+        .map(|(m, s)| (20.0 * (s / m).log10() - offset).powi(2))
+        .sum();
+    (sum / reference.len().max(1) as f64).sqrt()
 }
 
 /// The grid the metrics are computed on, with the measured magnitude there.
@@ -229,5 +286,39 @@ mod tests {
         let m = [0.1, 1.0, 10.0];
         let s: Vec<f64> = m.iter().map(|v| v * 2.0).collect();
         assert!((lsd_db(&m, &s) - 20.0 * 2f64.log10()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn gain_alignment_removes_exactly_a_uniform_gain() {
+        let m = [0.1, 1.0, 10.0, 3.0];
+        let shape = [1.0, 2.0, 0.5, 1.0];
+        let s: Vec<f64> = m.iter().zip(&shape).map(|(a, b)| a * b).collect();
+        let aligned = gain_aligned_lsd_db(&m, &s);
+        for gain in [1e-3, 0.5, 1.0, 7.0, 1e4] {
+            let scaled: Vec<f64> = s.iter().map(|v| v * gain).collect();
+            assert!((gain_aligned_lsd_db(&m, &scaled) - aligned).abs() < 1e-9);
+            let offset = level_offset_db(&m, &scaled);
+            let d = 20.0 * f64::log10(gain);
+            assert!((offset - level_offset_db(&m, &s) - d).abs() < 1e-9);
+            // The identity of the module documentation.
+            let plain = lsd_db(&m, &scaled);
+            assert!((plain.powi(2) - offset.powi(2) - aligned.powi(2)).abs() < 1e-9);
+        }
+        // A pure gain has no shape error; a shape error is not removed.
+        let doubled: Vec<f64> = m.iter().map(|v| v * 2.0).collect();
+        assert!(gain_aligned_lsd_db(&m, &doubled) < 1e-12);
+        assert!(aligned > 1.0);
+    }
+
+    #[test]
+    fn no_other_gain_beats_the_mean_level() {
+        let m = [1.0, 4.0, 0.2, 0.9, 2.5];
+        let s = [1.3, 2.0, 0.5, 0.7, 2.5];
+        let best = gain_aligned_lsd_db(&m, &s);
+        for i in -40..=40 {
+            let g = 10f64.powf(f64::from(i) / 40.0);
+            let scaled: Vec<f64> = s.iter().map(|v| v * g).collect();
+            assert!(lsd_db(&m, &scaled) >= best - 1e-12);
+        }
     }
 }

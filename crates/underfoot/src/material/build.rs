@@ -14,7 +14,8 @@ use crate::fit::{FitConfig, FitError, MetricGrid, Metrics, Target, fit};
 use crate::material::library::validate_name;
 use crate::material::quality::{self, QualityConfig, QualityError, RecordingsQuality};
 use crate::material::{FilterCoefficients, FitRecord, MaterialModel, SourceFile};
-use crate::physical::{CalibrationConfig, GroundKind, calibrate};
+use crate::physical::calibrate::calibrate_measured;
+use crate::physical::{CalibrationConfig, GroundKind};
 use crate::recording::Recording;
 
 pub use crate::fit::metrics::METRIC_POINTS;
@@ -169,14 +170,31 @@ pub fn build_material_with_report(
         crate::fit::OrderChoice::Auto { max } => max,
         crate::fit::OrderChoice::Fixed(n) => n,
     };
-    let outcome = fit(&target, &grid, &cfg.fit, &mut |f| {
-        progress(&Progress::OrderTried {
-            order: f.order,
-            max_order,
-            lsd_db: f.metrics.lsd_db,
-            nrmse: f.metrics.nrmse,
+    // The physical calibration needs only the measurement: it runs beside the IIR fit.
+    let calibration = cfg.physical.as_ref().map(|cal| CalibrationConfig {
+        analysis: a.clone(),
+        ..cal.clone()
+    });
+    let (outcome, physical) = std::thread::scope(|scope| {
+        let physical = calibration
+            .as_ref()
+            .map(|cal| scope.spawn(|| calibrate_measured(recordings, &measured, cal)));
+        let outcome = fit(&target, &grid, &cfg.fit, &mut |f| {
+            progress(&Progress::OrderTried {
+                order: f.order,
+                max_order,
+                lsd_db: f.metrics.lsd_db,
+                nrmse: f.metrics.nrmse,
+            });
         });
-    })?;
+        let physical = physical.map(|h| {
+            h.join()
+                .map_err(|_| "the physical calibration did not finish".to_string())
+                .and_then(|r| r.map_err(|e| e.to_string()))
+        });
+        (outcome, physical)
+    });
+    let outcome = outcome?;
     let best = outcome.best;
     let model = MaterialModel {
         name: name.to_string(),
@@ -214,23 +232,16 @@ pub fn build_material_with_report(
     };
     let mut model = model;
     quality::check_fit(model.order, &mut model.fit, &cfg.quality)?;
-    if let Some(cal) = &cfg.physical {
-        let cal = CalibrationConfig {
-            analysis: a.clone(),
-            ..cal.clone()
-        };
-        match calibrate(recordings, &cal) {
-            Ok(p) => {
-                progress(&Progress::Physical {
-                    kind: p.kind,
-                    lsd_db: p.record.lsd_db,
-                });
-                model.physical = Some(p);
-            }
-            Err(e) => progress(&Progress::PhysicalFailed {
-                reason: e.to_string(),
-            }),
+    match physical {
+        Some(Ok(p)) => {
+            progress(&Progress::Physical {
+                kind: p.kind,
+                lsd_db: p.record.lsd_db,
+            });
+            model.physical = Some(p);
         }
+        Some(Err(reason)) => progress(&Progress::PhysicalFailed { reason }),
+        None => {}
     }
     Ok((
         model,

@@ -81,8 +81,17 @@
 //!    window all count), analysed exactly as the recordings were, and the output gain is
 //!    set so that the mean level in dB over the band equals the measurement's. What the
 //!    render still misses, `M(f) / R(f)`, multiplies the goal of the gain fit, and steps 7
-//!    and 8 run again (3 rounds); the round closest to the measurement is kept, and its
-//!    render at that gain gives the recorded NRMSE and log-spectral distance.
+//!    and 8 run again (`refine_rounds`, 1 by default: on the shared recordings a second
+//!    or third round never came out best, and each costs a render); the round closest to
+//!    the measurement is kept, and its render at that gain gives the recorded NRMSE and
+//!    log-spectral distance ([`score_render`] computes the same figure again).
+//!    The steps are independent draws, so the render runs in two halves on two threads
+//!    (the second half with its own random stream) and their strikes are pooled.
+//!
+//! **Cost.** The renders are most of it (a nominal step is a second at 48 kHz through
+//! 32 modes and four voices); the measurement is the IIR fit's, passed in by
+//! [`calibrate_measured`], and [`crate::material::build`] runs the calibration beside the
+//! IIR fit. `benches/calibration.rs` and `scripts/time-fit` measure it.
 //!
 //! On the shared recordings the calibrated models come within 0.8-2.1 dB (log-spectral
 //! distance) of the measurement in the calibration render, and 0.8-2.4 dB in a render with
@@ -94,16 +103,19 @@ use num_complex::Complex64;
 use super::ground::Ground;
 use super::model::{GroundKind, MAX_MODES, PhysicalModel, PhysicalRecord};
 use super::{Impact, ImpactParams, Mode, PhysicalError, Surface};
-use crate::analysis::{AnalysisConfig, AnalysisError, MeasuredResponse, condition, measure};
+use crate::analysis::{
+    AnalysisConfig, AnalysisError, MeasuredResponse, StrikeSource, condition, measure,
+};
 use crate::fit::crumpling::{
     CrumplingError, OnsetConfig, calibrate_rate_scale, crumpling_measure, impact_onsets,
 };
 use crate::fit::lpc::{LpcError, autocorrelation, levinson_durbin};
-use crate::fit::metrics::{METRIC_POINTS, lsd_db, nrmse};
+use crate::fit::metrics::{METRIC_POINTS, Metrics, level_offset_db, lsd_db, nrmse};
 use crate::fit::target::Target;
 use crate::force::drive::DriveKind;
 use crate::force::gait::nominal_step;
 use crate::recording::Recording;
+use crate::signal::spectrum::fractional_octave_smooth;
 use crate::signal::wavelet::Wavelet;
 use crate::units::{Hz, Newtons, SampleRate, Seconds};
 
@@ -192,7 +204,7 @@ impl Default for CalibrationConfig {
             nominal_weight_kg: 70.0,
             nominal_cadence: 1.8,
             steps: 8,
-            refine_rounds: 3,
+            refine_rounds: 1,
             seed: 0x5EED,
         }
     }
@@ -250,8 +262,38 @@ pub fn calibrate(
     cfg: &CalibrationConfig,
 ) -> Result<PhysicalModel, CalibrationError> {
     check(cfg)?;
+    let measured = measure(recordings, &cfg.analysis)?;
+    calibrate_measured(recordings, &measured, cfg)
+}
+
+/// As [`calibrate()`], from the measured response of `recordings` already computed with
+/// `cfg.analysis` (the IIR fit's, in [`crate::material::build`]), so the recordings are
+/// not measured twice.
+///
+/// # Errors
+/// As [`calibrate()`]; [`CalibrationError::InvalidSetting`] when `measured` was taken at
+/// another rate or band than `cfg.analysis`, or holds strikes of recordings not given.
+pub fn calibrate_measured(
+    recordings: &[Recording],
+    measured: &MeasuredResponse,
+    cfg: &CalibrationConfig,
+) -> Result<PhysicalModel, CalibrationError> {
+    check(cfg)?;
     let a = &cfg.analysis;
-    let measured = measure(recordings, a)?;
+    if measured.rate != a.rate || measured.band != a.band {
+        return Err(CalibrationError::InvalidSetting(
+            "the measured response was taken at another rate or band than the calibration's",
+        ));
+    }
+    if measured
+        .strikes
+        .iter()
+        .any(|s| s.recording >= recordings.len())
+    {
+        return Err(CalibrationError::InvalidSetting(
+            "the measured response holds strikes of recordings not given",
+        ));
+    }
     let fit_freqs = a.band.log_grid(2 * METRIC_POINTS);
     let metric_freqs = a.band.log_grid(METRIC_POINTS);
     let target = measured.on_grid(&metric_freqs);
@@ -414,13 +456,7 @@ pub fn calibrate(
         // Level: render, analyse as a recording, match the mean level in dB.
         let got = render_measure(&model, cfg, cfg.seed)?;
         let scored = got.on_grid(&metric_freqs);
-        let offset = scored
-            .iter()
-            .zip(&target)
-            .map(|(g, m)| (g / m).log10())
-            .sum::<f64>()
-            / target.len() as f64;
-        let correction = 10f64.powf(-offset);
+        let correction = 10f64.powf(-level_offset_db(&target, &scored) / 20.0);
         model.output_gain *= correction;
         let scored: Vec<f64> = scored.iter().map(|g| g * correction).collect();
         model.record.nrmse = nrmse(&target, &scored);
@@ -445,6 +481,40 @@ pub fn calibrate(
     ))
 }
 
+/// The seed of the held-out render (`compare`'s second figure, the tests'): a random
+/// stream of micro-impacts the calibration has not seen.
+#[must_use]
+pub fn held_out_seed(cfg: &CalibrationConfig) -> u64 {
+    cfg.seed ^ 0x00C0_FFEE
+}
+
+/// How close `model` comes to the measured magnitude `measured` on `grid`: `cfg.steps`
+/// nominal steps rendered with `seed` at the model's stored output gain, analysed as the
+/// recordings were ([`analyse_render`]), and scored by [`crate::fit::metrics`]. Returns
+/// the model's magnitude on `grid` and its metrics.
+///
+/// With `cfg.seed` this reproduces the figure the calibration records
+/// ([`PhysicalRecord::lsd_db`], what `fit` prints: the render the level and the gains
+/// were fitted on); with [`held_out_seed`] it is the held-out figure, a render of other
+/// random micro-impacts (for a solid the two are the same render).
+///
+/// # Errors
+/// As [`analyse_render`].
+pub fn score_render(
+    model: &PhysicalModel,
+    cfg: &CalibrationConfig,
+    grid: &[Hz],
+    measured: &[f64],
+    seed: u64,
+) -> Result<(Vec<f64>, Metrics), CalibrationError> {
+    let got = analyse_render(model, cfg, grid, seed)?;
+    let metrics = Metrics {
+        nrmse: nrmse(measured, &got),
+        lsd_db: lsd_db(measured, &got),
+    };
+    Ok((got, metrics))
+}
+
 /// The model's magnitude on `freqs` when `steps` nominal steps are rendered at
 /// [`RENDER_RATE`] and analysed as recordings are, at the model's output gain.
 ///
@@ -464,14 +534,65 @@ fn render_measure(
     cfg: &CalibrationConfig,
     seed: u64,
 ) -> Result<MeasuredResponse, CalibrationError> {
-    let samples = render_steps(model, cfg, seed)?;
-    let recording = Recording {
-        name: "physical model (rendered)".into(),
-        rate: RENDER_RATE,
-        samples: samples.iter().map(|v| f64::from(*v)).collect(),
-        sha256: String::new(),
+    // The steps are independent draws (a second apart, each with its own micro-impacts),
+    // so they are rendered and analysed in two halves on two threads, the second with its
+    // own random stream, and the halves' strikes pooled as `measure` pools a material's.
+    let steps = cfg.steps.max(1);
+    let first = steps.div_ceil(2);
+    let second = steps - first;
+    let half = |n: usize, seed: u64| -> Result<MeasuredResponse, CalibrationError> {
+        let samples = render_n_steps(model, cfg, seed, n)?;
+        let recording = Recording {
+            name: "physical model (rendered)".into(),
+            rate: RENDER_RATE,
+            samples: samples.iter().map(|v| f64::from(*v)).collect(),
+            sha256: String::new(),
+        };
+        Ok(measure(&[recording], &cfg.analysis)?)
     };
-    Ok(measure(&[recording], &cfg.analysis)?)
+    if second == 0 {
+        return half(first, seed);
+    }
+    let (a, b) = std::thread::scope(|scope| {
+        let other = scope.spawn(|| half(second, second_half_seed(seed)));
+        let a = half(first, seed);
+        let b = other.join().unwrap_or(Err(CalibrationError::Gains(
+            "the render's second half did not finish",
+        )));
+        (a, b)
+    });
+    Ok(pool(a?, b?, cfg.analysis.smoothing_fraction))
+}
+
+/// The random stream of the second half of a render.
+fn second_half_seed(seed: u64) -> u64 {
+    seed ^ 0x9E37_79B9_7F4A_7C15
+}
+
+/// Two measured responses of the same analysis as one: the RMS over all their strikes of
+/// the strikes' spectra, smoothed, exactly as [`measure`] averages the strikes of several
+/// recordings (its steps 5 and 6).
+fn pool(a: MeasuredResponse, b: MeasuredResponse, smoothing_fraction: f64) -> MeasuredResponse {
+    let (na, nb) = (a.strikes.len() as f64, b.strikes.len() as f64);
+    let raw: Vec<f64> = a
+        .raw
+        .iter()
+        .zip(&b.raw)
+        .map(|(x, y)| ((na * x * x + nb * y * y) / (na + nb)).sqrt())
+        .collect();
+    let magnitude = fractional_octave_smooth(&raw, a.bin_hz, smoothing_fraction);
+    let mut strikes = a.strikes;
+    strikes.extend(
+        b.strikes
+            .into_iter()
+            .map(|s| StrikeSource { recording: 1, ..s }),
+    );
+    MeasuredResponse {
+        magnitude,
+        raw,
+        strikes,
+        ..a
+    }
 }
 
 /// `cfg.steps` nominal steps, one second apart, through the model at [`RENDER_RATE`].
@@ -482,6 +603,15 @@ pub fn render_steps(
     model: &PhysicalModel,
     cfg: &CalibrationConfig,
     seed: u64,
+) -> Result<Vec<f32>, CalibrationError> {
+    render_n_steps(model, cfg, seed, cfg.steps)
+}
+
+fn render_n_steps(
+    model: &PhysicalModel,
+    cfg: &CalibrationConfig,
+    seed: u64,
+    steps: usize,
 ) -> Result<Vec<f32>, CalibrationError> {
     let fs = RENDER_RATE.hz();
     let step = nominal_step(cfg.nominal_weight_kg, cfg.nominal_cadence, fs);
@@ -495,9 +625,9 @@ pub fn render_steps(
     let block = 256;
     let mut ground = Ground::new(model, RENDER_RATE, seed, block)?;
     let threshold = crate::force::steps::DetectorConfig::default().on.0;
-    let mut force = vec![0.0; lead + period * cfg.steps.max(1)];
+    let mut force = vec![0.0; lead + period * steps.max(1)];
     let mut strikes = Vec::new();
-    for s in 0..cfg.steps.max(1) {
+    for s in 0..steps.max(1) {
         let start = lead + s * period;
         force[start..start + step.len()].copy_from_slice(&step);
         if let Some(i) = step.iter().position(|&f| f >= threshold) {
@@ -619,9 +749,11 @@ fn contact_spectrum(
         .iter()
         .map(|f| {
             let w = rate.omega(*f);
+            // The pulse lasts a fraction of a millisecond: only its samples count.
             force
                 .iter()
                 .enumerate()
+                .filter(|(_, x)| **x != 0.0)
                 .map(|(n, x)| Complex64::from_polar(f64::from(*x) * t, -w * n as f64))
                 .sum::<Complex64>()
                 .norm()

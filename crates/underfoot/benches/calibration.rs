@@ -1,0 +1,84 @@
+//! What a whole `fit` of one material costs, and where it goes (issue 13's "Fast": a
+//! whole `fit` of gravel under 100 ms, the IIR order search under 30 ms).
+//!
+//! On the shared recordings of each material (gravel first; skipped with a note when
+//! the recordings are absent):
+//!
+//! - `calibration/physical/NAME`: [`calibrate_measured`] alone, from the measured
+//!   response the IIR fit has already computed (what `build_material` does);
+//! - `calibration/iir/NAME`: `build_material` without the physical model (reading,
+//!   conditioning and measuring the recordings, and the order search);
+//! - `calibration/whole/NAME`: `build_material` with both, what `underfoot fit` runs
+//!   between reading the files and writing the library.
+//!
+//! The whole process (decoding the Ogg files, writing the library) is timed by
+//! `scripts/time-fit`, the median of five runs of the release binary.
+
+use std::hint::black_box;
+use std::path::PathBuf;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use underfoot::analysis::measure;
+use underfoot::material::build::{BuildConfig, build_material};
+use underfoot::physical::CalibrationConfig;
+use underfoot::physical::calibrate::calibrate_measured;
+use underfoot::recording::{Recording, read};
+
+fn shared(material: &str) -> Option<Vec<Recording>> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/footsteps")
+        .join(material);
+    let mut files: Vec<_> = std::fs::read_dir(dir)
+        .ok()?
+        .filter_map(Result::ok)
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "ogg"))
+        .collect();
+    files.sort();
+    files.iter().map(|p| read(p, None).ok()).collect()
+}
+
+fn bench(c: &mut Criterion) {
+    let materials: Vec<(&str, Vec<Recording>)> = ["gravel", "hard"]
+        .into_iter()
+        .filter_map(|m| shared(m).map(|r| (m, r)))
+        .collect();
+    if materials.is_empty() {
+        eprintln!("note: shared recordings absent (../shared/data/footsteps): nothing to time");
+        return;
+    }
+    let whole = BuildConfig::default();
+    let iir = BuildConfig {
+        physical: None,
+        ..BuildConfig::default()
+    };
+    let cal = CalibrationConfig::default();
+    let mut group = c.benchmark_group("calibration");
+    for (name, recs) in &materials {
+        let measured = measure(recs, &cal.analysis).expect("measurable");
+        let model = calibrate_measured(recs, &measured, &cal).expect("calibrates");
+        eprintln!(
+            "{name}: physical {}, {} modes, LSD {:.3} dB",
+            model.kind.name(),
+            model.modes.len(),
+            model.record.lsd_db
+        );
+        group.bench_function(format!("physical/{name}"), |b| {
+            b.iter(|| calibrate_measured(black_box(recs), &measured, &cal).expect("calibrates"));
+        });
+        group.bench_function(format!("iir/{name}"), |b| {
+            b.iter(|| build_material(name, black_box(recs), &iir, &mut |_| {}).expect("fit"));
+        });
+        group.bench_function(format!("whole/{name}"), |b| {
+            b.iter(|| build_material(name, black_box(recs), &whole, &mut |_| {}).expect("fit"));
+        });
+    }
+    group.finish();
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(10);
+    targets = bench
+}
+criterion_main!(benches);
