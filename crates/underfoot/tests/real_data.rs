@@ -13,6 +13,7 @@
 mod common;
 
 use underfoot::analysis::raw_response;
+use underfoot::fit::metrics::gain_aligned_lsd_db;
 use underfoot::fit::{Target, levi};
 use underfoot::material::build::{BuildConfig, METRIC_POINTS, build_material_with_report};
 use underfoot::recording::{Recording, read};
@@ -143,15 +144,4 @@ fn every_real_material_fits_within_one_db() {
         }
     }
     assert!(failures.is_empty(), "{failures:#?}");
-}
-
-// TEMP until the metrics merge.
-fn gain_aligned_lsd_db(r: &[f64], m: &[f64]) -> f64 {
-    let d: Vec<f64> = r
-        .iter()
-        .zip(m)
-        .map(|(a, b)| 20.0 * (b / a).log10())
-        .collect();
-    let mean = d.iter().sum::<f64>() / d.len() as f64;
-    (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / d.len() as f64).sqrt()
 }

@@ -123,13 +123,35 @@ pub fn level_offset_db(reference: &[f64], model: &[f64]) -> f64 {
 /// If the slices differ in length.
 #[must_use]
 pub fn gain_aligned_lsd_db(reference: &[f64], model: &[f64]) -> f64 {
-    let offset = level_offset_db(reference, model);
-    let sum: f64 = reference
+    assert_eq!(
+        reference.len(),
+        model.len(),
+        "reference and model on the same grid"
+    );
+    let to_db = |v: &[f64]| -> Vec<f64> { v.iter().map(|x| 20.0 * x.log10()).collect() };
+    gain_aligned_level_distance_db(&to_db(reference), &to_db(model))
+}
+
+/// [`gain_aligned_lsd_db`] of two curves already in dB: the RMS of their difference once
+/// its mean is taken out (0 for empty curves).
+///
+/// # Panics
+/// If the slices differ in length.
+#[must_use]
+pub fn gain_aligned_level_distance_db(reference_db: &[f64], model_db: &[f64]) -> f64 {
+    assert_eq!(
+        reference_db.len(),
+        model_db.len(),
+        "reference and model on the same grid"
+    );
+    let n = reference_db.len().max(1) as f64;
+    let d: Vec<f64> = model_db
         .iter()
-        .zip(model)
-        .map(|(m, s)| (20.0 * (s / m).log10() - offset).powi(2))
-        .sum();
-    (sum / reference.len().max(1) as f64).sqrt()
+        .zip(reference_db)
+        .map(|(s, m)| s - m)
+        .collect();
+    let mean = d.iter().sum::<f64>() / n;
+    (d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt()
 }
 
 /// The grid the metrics are computed on, with the measured magnitude there.

@@ -535,18 +535,9 @@ fn levels(
         .collect()
 }
 
-/// The gain-aligned log-spectral distance between two level curves in dB: the RMS of
-/// their difference once its mean is taken out.
-#[must_use]
-pub fn aligned_lsd_db(a_db: &[f64], b_db: &[f64]) -> f64 {
-    let n = a_db.len().min(b_db.len());
-    if n == 0 {
-        return 0.0;
-    }
-    let d: Vec<f64> = a_db.iter().zip(b_db).map(|(a, b)| a - b).collect();
-    let mean = d.iter().sum::<f64>() / n as f64;
-    (d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n as f64).sqrt()
-}
+/// The gain-aligned log-spectral distance between two level curves in dB (the one
+/// definition, [`crate::fit::metrics::gain_aligned_level_distance_db`]).
+pub use crate::fit::metrics::gain_aligned_level_distance_db as aligned_lsd_db;
 
 /// How far each recording's spectrum is from the others'; see the [module docs](self).
 ///
