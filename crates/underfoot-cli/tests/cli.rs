@@ -203,19 +203,19 @@ fn broken_libraries_fail_with_a_clear_message_and_stay_unchanged() {
         lib.materials[1].filter = FilterCoefficients::from_sos(&sos);
         serde_json::to_string_pretty(&lib).expect("json")
     };
-    let v2 = library(&["gravel"])
+    let v3 = library(&["gravel"])
         .to_json()
-        .replace("underfoot.library/1", "underfoot.library/2");
+        .replace("underfoot.library/2", "underfoot.library/3");
     let cases: [(&str, String, &[&str]); 3] = [
         (
             "malformed",
-            "{\n  \"format\": \"underfoot.library/1\",\n  \"materials\": [\n".into(),
+            "{\n  \"format\": \"underfoot.library/2\",\n  \"materials\": [\n".into(),
             &["line", "column"],
         ),
         (
             "unknown version",
-            v2,
-            &["\"underfoot.library/2\"", "underfoot.library/1"],
+            v3,
+            &["\"underfoot.library/3\"", "underfoot.library/2"],
         ),
         ("unstable", unstable, &["\"ice\"", "unstable", "1.01"]),
     ];

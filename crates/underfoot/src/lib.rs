@@ -81,7 +81,7 @@
 //! let mut library = Library::new();
 //! library.upsert(model);
 //! let json = library.to_json();
-//! assert!(json.contains("underfoot.library/1"));
+//! assert!(json.contains("underfoot.library/2"));
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
