@@ -231,7 +231,8 @@ pub fn worst_deviation(
         let m = crate::fit::target::interpolate_bins(magnitude, bin_hz, f);
         let s = sos.response(rate.omega(Hz(f))).norm();
         let d = (20.0 * (s / m).log10()).abs();
-        if !(d <= worst.db) {
+        // A NaN (a zero in the measurement) counts as the worst.
+        if d.is_nan() || d > worst.db {
             worst = WorstDeviation { db: d, at_hz: f };
             if !d.is_finite() {
                 break;

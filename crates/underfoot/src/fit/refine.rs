@@ -366,8 +366,7 @@ pub fn refine(
     max_iter: usize,
     max_radius: f64,
 ) -> Result<Refined, FitError> {
-    if !(max_radius > 0.0 && max_radius <= 1.0)
-        || !sos.is_stable()
+    if !(max_radius > 0.0 && max_radius <= 1.0 && sos.is_stable())
         || sos.poles().iter().any(|p| p.norm() >= max_radius)
     {
         return Err(FitError::Unstable);
