@@ -21,12 +21,12 @@
 //!    resampler's pass band, rounded down.
 //! 3. **No strike above the noise** ([`QualityError::NoClearStrike`]). On each recording's
 //!    conditioned signal `x` (at the analysis rate, trend removed, see
-//!    [`condition`](crate::analysis::condition)), the moving RMS over every whole window of
+//!    [`condition`]), the moving RMS over every whole window of
 //!    `W = snr_window` samples (5 ms by default, the onset detector's envelope),
 //!    `e[n] = sqrt( (1/W) sum_{m=n}^{n+W-1} x[m]^2 )`, gives the
 //!    **strike-to-noise ratio**
 //!
-//!    $$ \mathrm{SNR} = 20 \log_{10} \frac{\max_n e[n]}{P_{1}(e)} \ \mathrm{dB}, $$
+//!    $$ \mathrm{SNR} = 20 \log_{10} \frac{\max_n e(n)}{P_{1}(e)} \ \mathrm{dB}, $$
 //!
 //!    the loudest 5 ms against the noise floor, read from the quietest part of the signal
 //!    (the 1st percentile of the envelope, nearest rank: the quietest hundredth, which a
