@@ -129,6 +129,9 @@ const RETUNE_CEILING: f64 = 0.49;
 /// Modes summed side by side in the free loop.
 const LANES: usize = 4;
 
+/// The most live modes the free loop copies to arrays on the stack to run them as vectors.
+const SOA_MODES: usize = 64;
+
 /// A bank of damped modes running in parallel, one complex one-pole each.
 ///
 /// Allocates at construction only; [`tick`](Self::tick) and
@@ -455,6 +458,58 @@ impl ResonatorBank {
     /// Rings freely over `out`, adding the velocity of each sample to it (as
     /// [`velocity`](Self::velocity) then `tick(0.0)`, sample by sample).
     pub(crate) fn add_free_velocity(&mut self, out: &mut [f32]) {
+        let live = self.live;
+        if live > SOA_MODES {
+            self.add_free_velocity_aos(out);
+            return;
+        }
+        // The live modes go into separate arrays of real and imaginary parts (a struct of
+        // arrays, on the stack), padded with silent modes to a whole number of lanes, so
+        // that the compiler can run the lanes of the sample loop as vector operations.
+        // The arithmetic of each mode is that of the complex loop.
+        let padded = live.div_ceil(LANES) * LANES;
+        let mut zr = [0.0; SOA_MODES];
+        let mut zi = [0.0; SOA_MODES];
+        let mut pr = [0.0; SOA_MODES];
+        let mut pi = [0.0; SOA_MODES];
+        let mut sr = [0.0; SOA_MODES];
+        let mut si = [0.0; SOA_MODES];
+        for k in 0..live {
+            zr[k] = self.state[k].re;
+            zi[k] = self.state[k].im;
+            pr[k] = self.pole[k].re;
+            pi[k] = self.pole[k].im;
+            sr[k] = self.gain_slope[k].re;
+            si[k] = self.gain_slope[k].im;
+        }
+        let (zr, zi) = (&mut zr[..padded], &mut zi[..padded]);
+        let (pr, pi, sr, si) = (&pr[..padded], &pi[..padded], &sr[..padded], &si[..padded]);
+        for o in out.iter_mut() {
+            let mut lanes = [0.0; LANES];
+            for ((((zr, zi), pr), pi), (sr, si)) in zr
+                .chunks_exact_mut(LANES)
+                .zip(zi.chunks_exact_mut(LANES))
+                .zip(pr.chunks_exact(LANES))
+                .zip(pi.chunks_exact(LANES))
+                .zip(sr.chunks_exact(LANES).zip(si.chunks_exact(LANES)))
+            {
+                for l in 0..LANES {
+                    lanes[l] += sr[l] * zi[l] + si[l] * zr[l];
+                    let re = zr[l] * pr[l] - zi[l] * pi[l];
+                    zi[l] = zr[l] * pi[l] + zi[l] * pr[l];
+                    zr[l] = re;
+                }
+            }
+            *o += ((lanes[0] + lanes[1]) + (lanes[2] + lanes[3])) as f32;
+        }
+        for (k, z) in self.state[..live].iter_mut().enumerate() {
+            *z = Complex64::new(zr[k], zi[k]);
+        }
+    }
+
+    /// [`add_free_velocity`](Self::add_free_velocity) for banks of more than
+    /// [`SOA_MODES`] live modes, on the complex arrays in place.
+    fn add_free_velocity_aos(&mut self, out: &mut [f32]) {
         // Modes go four at a time into separate partial sums, so that a sample's sum is
         // not one long chain of additions. Every sample is computed the same way wherever
         // a block starts or ends, which keeps the engine's output independent of its
