@@ -23,8 +23,9 @@
 //! $$ \frac{1}{f_s} \sum_n \big( e^{\alpha I\[n\]} - 1 \big) = K, $$
 //!
 //! i.e. the mean of `N` over the recording equals the onsets per second. The left side is
-//! zero at `α = 0` and increases without bound for any non-silent `I`, so the root exists
-//! and is found by bracketing and bisection.
+//! zero at `α = 0` and increases without bound for any non-silent `I`, so the root exists;
+//! it is bracketed by doubling, then found by Newton's method from above the root (the
+//! left side is convex in `α`, so the steps fall monotonically onto it).
 //!
 //! **Onsets.** The band's energy `d_j^2` is smoothed by a short moving average (0.5 ms by
 //! default, to merge the oscillation within one burst), and an onset is a local maximum of
@@ -281,18 +282,23 @@ pub fn calibrate_rate_scale(
             return Err(CrumplingError::NoActivity { onsets });
         }
     }
+    // The expectation is convex in a: Newton's steps from above the root stay above it
+    // and fall toward it monotonically, so they stop, to rounding, where a step no longer
+    // moves down (a handful of passes over the measure, where bisection took sixty).
+    let mut a = hi;
     for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if mid <= lo || mid >= hi {
+        let (sum, slope) = measure.iter().fold((0.0, 0.0), |(f, d), &i| {
+            let e = (a * i).exp_m1();
+            (f + e, d + i * (e + 1.0))
+        });
+        let excess = sum / rate.hz() - target;
+        let next = a - excess * rate.hz() / slope;
+        if !(next < a && next >= lo) {
             break;
         }
-        if expected(mid) < target {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
+        a = next;
     }
-    Ok(0.5 * (lo + hi))
+    Ok(a)
 }
 
 #[cfg(test)]

@@ -92,7 +92,7 @@
 //!
 //! Every sample is computed the same way wherever a block (or the stretch between two
 //! events) starts or ends, and the decisions that change the arithmetic (withdrawing a
-//! hammer, resting a voice) are taken on sample clocks (the strike's, every 16 samples;
+//! hammer, culling a mode, resting a voice) are taken on sample clocks (the strike's, every 16 samples;
 //! the aggregate's, every 64), never at block boundaries. The output is therefore the
 //! same, bit for bit, for any block size (the engine's tests check 1, 7, 64 and 512).
 //!
@@ -108,6 +108,21 @@
 //! whose surface energy has fallen to `10^{-12}` (−120 dB) of the largest it held since
 //! its last check is brought to rest and costs nothing until struck again; so at low
 //! rates, or with short decays, the cost follows the events rather than the pool size.
+//!
+//! # Culling modes
+//!
+//! A voice's modes decay very unequally (gravel's: a median of 4 ms, the slowest 26 ms),
+//! so a voice waiting for its slowest mode to fall 120 dB would spend most of its free
+//! ringing on modes already far below that. At each check of the aggregate's clock, a
+//! voice whose hammer has been withdrawn culls every mode whose own energy
+//! `½ ω_k g_k |z_k|²` is at most `10^{-12} / K` of the voice's peak (`K` modes): the
+//! mode is set to exactly zero and skipped by the free loop
+//! ([`ResonatorBank::cull`]) until the voice is retuned or struck again, which restores
+//! all its modes. A free mode only decays, so what is dropped is at most what the mode
+//! held then, and all the culled modes of a voice together hold at most `10^{-12}` of its
+//! peak: never more than resting the whole voice discards (each mode's amplitude at most
+//! `10^{-6} / \sqrt{K}` of the peak's, below −120 dB together). The decision is taken on
+//! the aggregate's clock like the rest, so the output stays the same for any block size.
 //! Measured (criterion, `benches/physical.rs`, four voices at 300 events/s, 48 kHz):
 //! about 22 M samples/s with 3 modes and 8 M samples/s with 16, on one core.
 
@@ -494,6 +509,11 @@ impl Aggregate {
                 v.active = false;
                 v.peak = 0.0;
                 v.budget = 0.0;
+            } else if on_clock {
+                // Each mode may take its share of what resting the voice would drop.
+                let modes = v.impact.surface().map_or(1, |b| b.modes().len());
+                v.impact
+                    .cull_quiet_modes(REST_ENERGY * v.peak / modes as f64);
             }
         }
         if runaway {

@@ -232,6 +232,9 @@ impl Impact {
     }
 
     fn arm(&mut self, velocity: f64) {
+        if let Some(bank) = &mut self.surface {
+            bank.restore();
+        }
         self.armed = true;
         self.x = 0.0;
         self.v = velocity;
@@ -309,6 +312,18 @@ impl Impact {
         {
             bank.add_free_velocity(rest);
             self.ys = bank.displacement();
+        }
+    }
+
+    /// Culls the surface's modes whose energy is at most `floor` (see
+    /// [`ResonatorBank::cull`]), once the hammer has been withdrawn: the free loop then
+    /// skips them until the next strike or retune. Nothing to do while a hammer may still
+    /// touch.
+    pub(crate) fn cull_quiet_modes(&mut self, floor: f64) {
+        if !self.armed
+            && let Some(bank) = &mut self.surface
+        {
+            bank.cull(floor);
         }
     }
 

@@ -56,6 +56,19 @@
 //! computed; only the zeros come from a root finder, whose accuracy falls as the number
 //! of modes grows (the numerator has degree `2K - 1`). For real-time use, the parallel
 //! form here is both cheaper and exact.
+//!
+//! # Culling
+//!
+//! Without input each mode only decays (`|p_k| < 1`), so once a mode's share of the
+//! energy, `½ ω_k |g_k| |z_k|²`, is negligible it stays negligible: a caller that knows
+//! the scale of what matters (an [`Aggregate`](super::Aggregate) voice, from its peak
+//! energy) may cull it ([`ResonatorBank::cull`]): its state is set to exactly zero and
+//! every loop skips it. The live modes are kept at the front of the per-mode arrays (a
+//! culled one is swapped with the last live one), so the loops run over one contiguous
+//! prefix with the arithmetic of each live mode unchanged. Any impulse, retune or reset
+//! restores all the modes (at rest, as they were culled) and the modes' order. Culling
+//! is a decision, so it must be taken on a sample clock of the caller's, never at a block
+//! boundary, to keep the output independent of the block size.
 
 use num_complex::Complex64;
 
@@ -116,6 +129,9 @@ const RETUNE_CEILING: f64 = 0.49;
 /// Modes summed side by side in the free loop.
 const LANES: usize = 4;
 
+/// The most live modes the free loop copies to arrays on the stack to run them as vectors.
+const SOA_MODES: usize = 64;
+
 /// A bank of damped modes running in parallel, one complex one-pole each.
 ///
 /// Allocates at construction only; [`tick`](Self::tick) and
@@ -136,6 +152,12 @@ pub struct ResonatorBank {
     state: Vec<Complex64>,
     /// `h[1]`: the displacement one sample after a unit impulse.
     first_sample: f64,
+    /// The modes still computed are the first `live` of the per-mode arrays; the others
+    /// were culled ([`cull`](Self::cull)) and their state is exactly zero.
+    live: usize,
+    /// Which mode of `modes` each position of the per-mode arrays holds: the identity
+    /// unless modes were culled (culling swaps the live ones to the front).
+    order: Vec<usize>,
 }
 
 impl ResonatorBank {
@@ -165,6 +187,8 @@ impl ResonatorBank {
             gain_slope: vec![zero; modes.len()],
             state: vec![zero; modes.len()],
             first_sample: 0.0,
+            live: modes.len(),
+            order: (0..modes.len()).collect(),
         };
         bank.tune();
         Ok(bank)
@@ -172,6 +196,7 @@ impl ResonatorBank {
 
     /// Recomputes every coefficient from the modes and the frequency scale, in place.
     fn tune(&mut self) {
+        self.restore();
         let fs = self.rate.hz();
         let ceiling = RETUNE_CEILING * fs;
         self.first_sample = 0.0;
@@ -237,6 +262,7 @@ impl ResonatorBank {
 
     /// The discrete poles `p_k`, one per mode (the member of each conjugate pair with
     /// positive imaginary part).
+    /// In the modes' order, except while modes are culled (see [`cull`](Self::cull)).
     #[must_use]
     pub fn poles(&self) -> &[Complex64] {
         &self.pole
@@ -252,6 +278,7 @@ impl ResonatorBank {
         self.gain_pole.reserve_exact(more);
         self.gain_slope.reserve_exact(more);
         self.state.reserve_exact(more);
+        self.order.reserve_exact(more);
     }
 
     /// Becomes a copy of `other`, state included, reusing this bank's buffers: no
@@ -265,6 +292,8 @@ impl ResonatorBank {
         self.rate = other.rate;
         self.scale = other.scale;
         self.first_sample = other.first_sample;
+        self.live = other.live;
+        copy(&mut self.order, &other.order);
         copy(&mut self.modes, &other.modes);
         copy(&mut self.pole, &other.pole);
         copy(&mut self.gain, &other.gain);
@@ -276,12 +305,63 @@ impl ResonatorBank {
     /// Brings the bank to rest.
     pub fn reset(&mut self) {
         self.state.fill(Complex64::new(0.0, 0.0));
+        self.restore();
+    }
+
+    /// Culls every live mode whose energy `½ ω_k |g_k| |z_k|²` (its share of
+    /// [`energy`](Self::energy)) is at most `floor`: its state is set to exactly zero and
+    /// the free loops skip it until [`restore`](Self::restore) (which a retune, a reset or
+    /// an impulse bring). Each mode only decays without input, so a culled mode would
+    /// have stayed at most that small. The live modes are swapped to the front of the
+    /// per-mode arrays; their own arithmetic is unchanged.
+    ///
+    /// Real time: no allocation, one pass over the live modes.
+    pub(crate) fn cull(&mut self, floor: f64) {
+        let mut k = 0;
+        while k < self.live {
+            let energy = 0.5 * self.gain_slope[k].im.abs() * self.state[k].norm_sqr();
+            if energy <= floor {
+                self.state[k] = Complex64::new(0.0, 0.0);
+                self.live -= 1;
+                self.swap(k, self.live);
+            } else {
+                k += 1;
+            }
+        }
+    }
+
+    /// Brings every culled mode back into the loops (at rest, as it was culled) and the
+    /// per-mode arrays back to the modes' order. Real time: at most one swap per mode.
+    pub(crate) fn restore(&mut self) {
+        self.live = self.modes.len();
+        for k in 0..self.order.len() {
+            while self.order[k] != k {
+                let j = self.order[k];
+                self.swap(k, j);
+            }
+        }
+    }
+
+    /// The number of modes computed (not culled).
+    #[must_use]
+    #[cfg(test)]
+    pub(crate) fn live_modes(&self) -> usize {
+        self.live
+    }
+
+    fn swap(&mut self, a: usize, b: usize) {
+        self.pole.swap(a, b);
+        self.gain.swap(a, b);
+        self.gain_pole.swap(a, b);
+        self.gain_slope.swap(a, b);
+        self.state.swap(a, b);
+        self.order.swap(a, b);
     }
 
     /// The displacement `y[n]` now, before this sample's input.
     #[must_use]
     pub fn displacement(&self) -> f64 {
-        self.state
+        self.state[..self.live]
             .iter()
             .zip(&self.gain)
             .map(|(z, g)| g * z.im)
@@ -292,7 +372,7 @@ impl ResonatorBank {
     /// gains are in metres per newton-second).
     #[must_use]
     pub fn velocity(&self) -> f64 {
-        self.state
+        self.state[..self.live]
             .iter()
             .zip(&self.gain_slope)
             .map(|(z, gs)| gs.re * z.im + gs.im * z.re)
@@ -302,8 +382,15 @@ impl ResonatorBank {
     /// Returns the displacement `y[n]`, then takes the impulse `J[n]` (N·s) of this
     /// sample and advances by one sample.
     pub fn tick(&mut self, impulse: f64) -> f64 {
+        if impulse != 0.0 && self.live < self.modes.len() {
+            self.restore();
+        }
         let mut y = 0.0;
-        for ((z, p), g) in self.state.iter_mut().zip(&self.pole).zip(&self.gain) {
+        for ((z, p), g) in self.state[..self.live]
+            .iter_mut()
+            .zip(&self.pole)
+            .zip(&self.gain)
+        {
             y += g * z.im;
             *z = p * (*z + impulse);
         }
@@ -342,8 +429,7 @@ impl ResonatorBank {
     /// current tuning.
     #[must_use]
     pub fn energy(&self) -> f64 {
-        0.5 * self
-            .state
+        0.5 * self.state[..self.live]
             .iter()
             .zip(&self.gain_slope)
             .map(|(z, gs)| gs.im.abs() * z.norm_sqr())
@@ -356,8 +442,7 @@ impl ResonatorBank {
     /// [`add_delayed_impulse`](Self::add_delayed_impulse) then adds the step's impulse.
     pub(crate) fn advance_free(&mut self) -> (f64, f64) {
         let (mut velocity, mut displacement) = (0.0, 0.0);
-        for (((z, p), g), gs) in self
-            .state
+        for (((z, p), g), gs) in self.state[..self.live]
             .iter_mut()
             .zip(&self.pole)
             .zip(&self.gain)
@@ -373,12 +458,65 @@ impl ResonatorBank {
     /// Rings freely over `out`, adding the velocity of each sample to it (as
     /// [`velocity`](Self::velocity) then `tick(0.0)`, sample by sample).
     pub(crate) fn add_free_velocity(&mut self, out: &mut [f32]) {
+        let live = self.live;
+        if live > SOA_MODES {
+            self.add_free_velocity_aos(out);
+            return;
+        }
+        // The live modes go into separate arrays of real and imaginary parts (a struct of
+        // arrays, on the stack), padded with silent modes to a whole number of lanes, so
+        // that the compiler can run the lanes of the sample loop as vector operations.
+        // The arithmetic of each mode is that of the complex loop.
+        let padded = live.div_ceil(LANES) * LANES;
+        let mut zr = [0.0; SOA_MODES];
+        let mut zi = [0.0; SOA_MODES];
+        let mut pr = [0.0; SOA_MODES];
+        let mut pi = [0.0; SOA_MODES];
+        let mut sr = [0.0; SOA_MODES];
+        let mut si = [0.0; SOA_MODES];
+        for k in 0..live {
+            zr[k] = self.state[k].re;
+            zi[k] = self.state[k].im;
+            pr[k] = self.pole[k].re;
+            pi[k] = self.pole[k].im;
+            sr[k] = self.gain_slope[k].re;
+            si[k] = self.gain_slope[k].im;
+        }
+        let (zr, zi) = (&mut zr[..padded], &mut zi[..padded]);
+        let (pr, pi, sr, si) = (&pr[..padded], &pi[..padded], &sr[..padded], &si[..padded]);
+        for o in out.iter_mut() {
+            let mut lanes = [0.0; LANES];
+            for ((((zr, zi), pr), pi), (sr, si)) in zr
+                .chunks_exact_mut(LANES)
+                .zip(zi.chunks_exact_mut(LANES))
+                .zip(pr.chunks_exact(LANES))
+                .zip(pi.chunks_exact(LANES))
+                .zip(sr.chunks_exact(LANES).zip(si.chunks_exact(LANES)))
+            {
+                for l in 0..LANES {
+                    lanes[l] += sr[l] * zi[l] + si[l] * zr[l];
+                    let re = zr[l] * pr[l] - zi[l] * pi[l];
+                    zi[l] = zr[l] * pi[l] + zi[l] * pr[l];
+                    zr[l] = re;
+                }
+            }
+            *o += ((lanes[0] + lanes[1]) + (lanes[2] + lanes[3])) as f32;
+        }
+        for (k, z) in self.state[..live].iter_mut().enumerate() {
+            *z = Complex64::new(zr[k], zi[k]);
+        }
+    }
+
+    /// [`add_free_velocity`](Self::add_free_velocity) for banks of more than
+    /// [`SOA_MODES`] live modes, on the complex arrays in place.
+    fn add_free_velocity_aos(&mut self, out: &mut [f32]) {
         // Modes go four at a time into separate partial sums, so that a sample's sum is
         // not one long chain of additions. Every sample is computed the same way wherever
         // a block starts or ends, which keeps the engine's output independent of its
         // block size, bit for bit.
-        let split = self.state.len() / LANES * LANES;
-        let (state, state_tail) = self.state.split_at_mut(split);
+        let live = self.live;
+        let split = live / LANES * LANES;
+        let (state, state_tail) = self.state[..live].split_at_mut(split);
         let (pole, pole_tail) = self.pole.split_at(split);
         let (slope, slope_tail) = self.gain_slope.split_at(split);
         for o in out.iter_mut() {
@@ -394,7 +532,11 @@ impl ResonatorBank {
                 }
             }
             let mut velocity = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
-            for ((z, p), gs) in state_tail.iter_mut().zip(pole_tail).zip(slope_tail) {
+            for ((z, p), gs) in state_tail
+                .iter_mut()
+                .zip(&pole_tail[..live - split])
+                .zip(slope_tail)
+            {
                 velocity += gs.re * z.im + gs.im * z.re;
                 *z *= p;
             }
@@ -405,7 +547,7 @@ impl ResonatorBank {
     /// `Σ |g_k| |z_k|`: no displacement, now or later without input, exceeds it in size
     /// (each `|z_k|` only decays).
     pub(crate) fn amplitude_bound(&self) -> f64 {
-        self.state
+        self.state[..self.live]
             .iter()
             .zip(&self.gain)
             .map(|(z, g)| g.abs() * z.norm())
@@ -417,7 +559,10 @@ impl ResonatorBank {
     /// `z_k ← p_k (z_k + J)` as in [`tick`](Self::tick), and the displacement grows by
     /// `h[1] J`.
     pub(crate) fn add_delayed_impulse(&mut self, impulse: f64) {
-        for (z, p) in self.state.iter_mut().zip(&self.pole) {
+        if impulse != 0.0 && self.live < self.modes.len() {
+            self.restore();
+        }
+        for (z, p) in self.state[..self.live].iter_mut().zip(&self.pole) {
             *z += p * impulse;
         }
     }
@@ -794,6 +939,70 @@ mod tests {
             }
             assert!((a.displacement() - b.displacement()).abs() <= 1e-12 * a.amplitude_bound());
         }
+    }
+
+    #[test]
+    fn culling_drops_only_quiet_modes_and_restoring_brings_them_back() {
+        let rate = SampleRate(48_000);
+        // Decays from 1 ms to 40 ms: after 20 ms the fastest are far below the slowest.
+        let modes: Vec<Mode> = (0..9)
+            .map(|k| Mode {
+                frequency: Hz(90.0 * 1.5f64.powi(k)),
+                decay: Seconds(if k % 3 == 0 {
+                    0.04
+                } else {
+                    0.0005 * (k + 1) as f64
+                }),
+                gain: 1e-3 / (k + 1) as f64,
+            })
+            .collect();
+        let mut full = ResonatorBank::new(&modes, rate).unwrap();
+        full.tick(0.01);
+        let mut warm = vec![0.0f32; 960];
+        full.add_free_velocity(&mut warm);
+        let peak = full.energy();
+        let mut culled = full.clone();
+        let floor = 1e-12 * peak;
+        culled.cull(floor);
+        let live = culled.live_modes();
+        assert!(live > 0 && live < modes.len(), "{live} live");
+        // Every mode kept is above the floor; every mode dropped was at most at it.
+        let share =
+            |b: &ResonatorBank, k: usize| 0.5 * b.gain_slope[k].im.abs() * b.state[k].norm_sqr();
+        assert!((0..live).all(|k| share(&culled, k) > floor));
+        assert!(
+            culled.state[live..]
+                .iter()
+                .all(|z| *z == Complex64::new(0.0, 0.0))
+        );
+        let dropped = full.energy() - culled.energy();
+        assert!(dropped >= 0.0 && dropped <= (modes.len() - live) as f64 * floor);
+        // The free loop carries on as before, but for the dropped modes' tiny share.
+        let (mut a, mut b) = (vec![0.0f32; 2000], vec![0.0f32; 2000]);
+        full.add_free_velocity(&mut a);
+        culled.add_free_velocity(&mut b);
+        let size = a.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        let err = a
+            .iter()
+            .zip(&b)
+            .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
+        assert!(err <= 1e-5 * size, "{err} of {size}");
+        // A retune (or an impulse) restores every mode, in the modes' order.
+        culled.retune(1.0).unwrap();
+        assert_eq!(culled.live_modes(), modes.len());
+        assert_eq!(
+            culled.poles(),
+            ResonatorBank::new(&modes, rate).unwrap().poles()
+        );
+        culled.cull(f64::INFINITY);
+        assert_eq!(culled.live_modes(), 0);
+        assert_eq!(culled.velocity(), 0.0);
+        culled.tick(0.01);
+        assert_eq!(culled.live_modes(), modes.len());
+        let fresh = ResonatorBank::new(&modes, rate)
+            .unwrap()
+            .impulse_response(50);
+        assert_eq!(culled.impulse_response(50), fresh);
     }
 
     #[test]
