@@ -371,7 +371,7 @@ fn extend(
         }
         SavgolSetting::Off => None,
     };
-    let resampler = Resampler::new(rec.rate, cfg.rate).map_err(wrap)?;
+    let resampler = Resampler::shared(rec.rate, cfg.rate).map_err(wrap)?;
     let (up, down) = resampler.ratio();
 
     // At the recording's rate, zeros enough for the smoother's edge fits to see only zeros

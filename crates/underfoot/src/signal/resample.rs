@@ -49,6 +49,7 @@
 
 use super::SignalError;
 use crate::units::SampleRate;
+use std::sync::{Arc, Mutex, PoisonError};
 
 /// The largest polyphase table (in taps) built; larger designs evaluate the kernel directly.
 pub const TABLE_LIMIT: usize = 1 << 20;
@@ -147,6 +148,9 @@ impl Prototype {
     }
 }
 
+/// How many resampler designs [`Resampler::shared`] keeps.
+pub const SHARED_DESIGNS: usize = 8;
+
 impl Resampler {
     /// A resampler from `from` to `to`.
     ///
@@ -154,6 +158,44 @@ impl Resampler {
     /// [`SignalError::InvalidParameter`] if either rate is zero.
     pub fn new(from: SampleRate, to: SampleRate) -> Result<Self, SignalError> {
         Self::build(from, to, false)
+    }
+
+    /// The same resampler as [`new`](Self::new), designed once per pair of rates in this
+    /// process and shared.
+    ///
+    /// A design at an awkward ratio (44.1 kHz to 2 kHz: 441 phases of a windowed sinc)
+    /// costs more than resampling a footstep, and one `fit` conditions each recording
+    /// several times (the quality gate, the measurement, the physical calibration and its
+    /// rendered steps). The cache holds the few ratios a process meets, at most
+    /// [`SHARED_DESIGNS`]; past that the oldest is dropped.
+    ///
+    /// # Errors
+    /// As [`new`](Self::new).
+    pub fn shared(from: SampleRate, to: SampleRate) -> Result<Arc<Self>, SignalError> {
+        static DESIGNS: Mutex<Vec<((u32, u32), Arc<Resampler>)>> = Mutex::new(Vec::new());
+        let key = (from.0, to.0);
+        // A poisoned lock only means another thread panicked mid-lookup; the list itself
+        // is always whole, so it is used as it is.
+        let lookup = |designs: &Vec<((u32, u32), Arc<Resampler>)>| {
+            designs
+                .iter()
+                .find(|(k, _)| *k == key)
+                .map(|(_, r)| Arc::clone(r))
+        };
+        if let Some(r) = lookup(&DESIGNS.lock().unwrap_or_else(PoisonError::into_inner)) {
+            return Ok(r);
+        }
+        // Designed outside the lock: two threads may both design it; one copy is kept.
+        let design = Arc::new(Self::new(from, to)?);
+        let mut designs = DESIGNS.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(r) = lookup(&designs) {
+            return Ok(r);
+        }
+        if designs.len() >= SHARED_DESIGNS {
+            designs.remove(0);
+        }
+        designs.push((key, Arc::clone(&design)));
+        Ok(design)
     }
 
     fn build(from: SampleRate, to: SampleRate, force_direct: bool) -> Result<Self, SignalError> {
@@ -288,7 +330,7 @@ impl Resampler {
 /// # Errors
 /// [`SignalError::InvalidParameter`] if either rate is zero.
 pub fn resample(x: &[f64], from: SampleRate, to: SampleRate) -> Result<Vec<f64>, SignalError> {
-    Ok(Resampler::new(from, to)?.process(x))
+    Ok(Resampler::shared(from, to)?.process(x))
 }
 
 fn gcd(mut a: u64, mut b: u64) -> u64 {
@@ -510,5 +552,17 @@ mod tests {
             let got = bessel_i0(x);
             assert!((got - want).abs() < 1e-12 * want, "I0({x}) = {got}");
         }
+    }
+
+    /// A shared design is the same design, made once.
+    #[test]
+    fn shared_designs_are_made_once_and_match_new() {
+        let (from, to) = (SampleRate(44_100), SampleRate(2000));
+        let a = Resampler::shared(from, to).unwrap();
+        let b = Resampler::shared(from, to).unwrap();
+        assert!(Arc::ptr_eq(&a, &b));
+        let x: Vec<f64> = (0..5000).map(|n| (n as f64 * 0.01).sin()).collect();
+        assert_eq!(a.process(&x), Resampler::new(from, to).unwrap().process(&x));
+        assert!(Resampler::shared(SampleRate(0), to).is_err());
     }
 }
