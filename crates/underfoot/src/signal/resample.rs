@@ -148,6 +148,9 @@ impl Prototype {
     }
 }
 
+/// The designs [`Resampler::shared`] keeps, by `(from, to)` rate.
+type Designs = Vec<((u32, u32), Arc<Resampler>)>;
+
 /// How many resampler designs [`Resampler::shared`] keeps.
 pub const SHARED_DESIGNS: usize = 8;
 
@@ -172,11 +175,11 @@ impl Resampler {
     /// # Errors
     /// As [`new`](Self::new).
     pub fn shared(from: SampleRate, to: SampleRate) -> Result<Arc<Self>, SignalError> {
-        static DESIGNS: Mutex<Vec<((u32, u32), Arc<Resampler>)>> = Mutex::new(Vec::new());
+        static DESIGNS: Mutex<Designs> = Mutex::new(Vec::new());
         let key = (from.0, to.0);
         // A poisoned lock only means another thread panicked mid-lookup; the list itself
         // is always whole, so it is used as it is.
-        let lookup = |designs: &Vec<((u32, u32), Arc<Resampler>)>| {
+        let lookup = |designs: &Designs| {
             designs
                 .iter()
                 .find(|(k, _)| *k == key)
