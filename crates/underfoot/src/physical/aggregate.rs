@@ -117,7 +117,7 @@
 //! voice whose hammer has been withdrawn culls every mode whose own energy
 //! `½ ω_k g_k |z_k|²` is at most `10^{-12} / K` of the voice's peak (`K` modes): the
 //! mode is set to exactly zero and skipped by the free loop
-//! ([`ResonatorBank::cull`]) until the voice is retuned or struck again, which restores
+//! (`ResonatorBank::cull`) until the voice is retuned or struck again, which restores
 //! all its modes. A free mode only decays, so what is dropped is at most what the mode
 //! held then, and all the culled modes of a voice together hold at most `10^{-12}` of its
 //! peak: never more than resting the whole voice discards (each mode's amplitude at most

@@ -62,7 +62,7 @@
 //! Without input each mode only decays (`|p_k| < 1`), so once a mode's share of the
 //! energy, `½ ω_k |g_k| |z_k|²`, is negligible it stays negligible: a caller that knows
 //! the scale of what matters (an [`Aggregate`](super::Aggregate) voice, from its peak
-//! energy) may cull it ([`ResonatorBank::cull`]): its state is set to exactly zero and
+//! energy) may cull it (`ResonatorBank::cull`): its state is set to exactly zero and
 //! every loop skips it. The live modes are kept at the front of the per-mode arrays (a
 //! culled one is swapped with the last live one), so the loops run over one contiguous
 //! prefix with the arithmetic of each live mode unchanged. Any impulse, retune or reset
@@ -262,7 +262,7 @@ impl ResonatorBank {
 
     /// The discrete poles `p_k`, one per mode (the member of each conjugate pair with
     /// positive imaginary part).
-    /// In the modes' order, except while modes are culled (see [`cull`](Self::cull)).
+    /// In the modes' order, except while modes are culled (see `cull`).
     #[must_use]
     pub fn poles(&self) -> &[Complex64] {
         &self.pole
