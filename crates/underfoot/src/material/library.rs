@@ -538,7 +538,8 @@ fn validate_sections(rows: &[[f64; 6]]) -> Result<crate::signal::Sos, String> {
 }
 
 /// `sos` with every pole beyond `rho` moved radially onto it (numerators kept), or `None`
-/// when no pole lies beyond it.
+/// when no pole lies beyond it. An unstable section is left as it is, so that validation
+/// refuses it: the upgrade reproduces what the voice played, it does not repair a file.
 fn limit_radius(sos: &crate::signal::Sos, rho: f64) -> Option<crate::signal::Sos> {
     use crate::signal::Biquad;
     let mut changed = false;
@@ -547,7 +548,7 @@ fn limit_radius(sos: &crate::signal::Sos, rho: f64) -> Option<crate::signal::Sos
         .iter()
         .map(|s| {
             let [p, q] = s.poles();
-            if p.norm() <= rho && q.norm() <= rho {
+            if (p.norm() <= rho && q.norm() <= rho) || !s.is_stable() {
                 return *s;
             }
             changed = true;
@@ -818,6 +819,22 @@ mod tests {
         // The model that was inside the limit is untouched.
         assert_eq!(lib.get("fine").unwrap(), &model("fine"));
         assert!(lib.to_json().contains(FORMAT));
+    }
+
+    /// The upgrade does not repair a format-1 file: an unstable filter is still refused.
+    #[test]
+    fn format_1_with_an_unstable_filter_is_still_refused() {
+        let old = Library {
+            format: FORMAT_1.to_string(),
+            materials: vec![ringing("bad", 1.01)],
+        };
+        let mut value: serde_json::Value = serde_json::from_str(&old.to_json()).unwrap();
+        value["materials"][0]["fit"]
+            .as_object_mut()
+            .unwrap()
+            .remove("longest_decay_s");
+        let e = Library::from_json(&value.to_string(), "old.json").expect_err("unstable");
+        assert!(e.to_string().contains("unstable"), "{e}");
     }
 
     #[test]
