@@ -77,14 +77,7 @@ fn every_real_material_fits_within_one_db() {
             Target::minimum_phase(a.rate, a.band, &raw.magnitude, cfg.fit.grid_points).unwrap();
         let levi_raw =
             levi::levi(&target, model.order, model.order, None).map_or(f64::NAN, |(b, den)| {
-                let on_grid: Vec<f64> = grid
-                    .iter()
-                    .map(|&f| {
-                        let w = a.rate.omega(f);
-                        (levi::eval_poly(&b, w) / levi::eval_poly(&den, w)).norm()
-                    })
-                    .collect();
-                gain_aligned_lsd_db(&raw_on_grid, &on_grid)
+                gain_aligned_lsd_db(&raw_on_grid, &levi::magnitude_on(&b, &den, a.rate, &grid))
             });
         let worst = model.fit.worst.expect("the dense check is recorded");
         println!(

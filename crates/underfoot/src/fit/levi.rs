@@ -23,6 +23,7 @@ use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 
 use super::{FitError, Target};
+use crate::units::{Hz, SampleRate};
 
 /// Levi's fit of a numerator of degree `nb` and denominator of degree `na` with per-point
 /// weights `weight` (multiplying the target's own weights).
@@ -103,6 +104,19 @@ pub fn eval_poly(p: &[f64], omega: f64) -> Complex64 {
     p.iter()
         .rev()
         .fold(Complex64::new(0.0, 0.0), |acc, &c| acc * z1 + c)
+}
+
+/// `|B/A|` of an expanded filter (as Levi's fit returns it, unstable poles and all) at
+/// each of `freqs`, for a filter running at `rate`.
+#[must_use]
+pub fn magnitude_on(b: &[f64], a: &[f64], rate: SampleRate, freqs: &[Hz]) -> Vec<f64> {
+    freqs
+        .iter()
+        .map(|&f| {
+            let w = rate.omega(f);
+            (eval_poly(b, w) / eval_poly(a, w)).norm()
+        })
+        .collect()
 }
 
 /// Least squares with unit-norm columns, by SVD.

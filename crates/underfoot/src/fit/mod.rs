@@ -218,17 +218,9 @@ pub fn fit_order(
         return Err(FitError::InvalidOrder { order });
     }
     let levi_ba = levi::levi(target, order, order, None).ok();
-    let levi_metrics = levi_ba.as_ref().map(|(b, a)| {
-        let model: Vec<f64> = grid
-            .freqs
-            .iter()
-            .map(|&f| {
-                let w = grid.rate.omega(f);
-                (levi::eval_poly(b, w) / levi::eval_poly(a, w)).norm()
-            })
-            .collect();
-        grid.evaluate_magnitude(&model)
-    });
+    let levi_metrics = levi_ba
+        .as_ref()
+        .map(|(b, a)| grid.evaluate_magnitude(&levi::magnitude_on(b, a, grid.rate, &grid.freqs)));
 
     let rho = decay_radius(target.rate, cfg.longest_decay);
     let mut starts: Vec<(&'static str, Sos)> = Vec::new();
