@@ -6,7 +6,6 @@ use crate::force::condition::ForceConditioner;
 use crate::force::drive::{DriveKind, Polarity};
 use crate::force::steps::{ReadingTime, StepDetector};
 use crate::physical::Ground;
-use crate::safety::Watchdog;
 use crate::signal::noise::SplitMix64;
 use crate::synthesis::{PreparedMaterial, Voice};
 use crate::units::Seconds;
@@ -15,7 +14,6 @@ use crate::units::Seconds;
 pub(super) struct Channel {
     conditioner: ForceConditioner,
     detector: StepDetector,
-    watchdog: Watchdog,
     rng: SplitMix64,
     drive: DriveKind,
     polarity: Polarity,
@@ -50,7 +48,6 @@ impl Channel {
         Self {
             conditioner: ForceConditioner::new(rate, config.sensor_rate),
             detector: StepDetector::new(&config.detector, config.sensor_rate),
-            watchdog: Watchdog::new(&config.watchdog, rate),
             // Each channel its own stream: steps on two feet are not the same.
             rng: SplitMix64::new(config.seed ^ (index as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)),
             drive: config.drive,
@@ -73,10 +70,6 @@ impl Channel {
             out_a: vec![0.0; config.max_block],
             out_b: vec![0.0; config.max_block],
         }
-    }
-
-    pub(super) fn watchdog_trips(&self) -> u64 {
-        self.watchdog.trips
     }
 
     /// Switches to a material; the old voice fades out over the crossfade time.
@@ -104,14 +97,19 @@ impl Channel {
     }
 
     /// A force reading applied at engine frame `frame`. The detector times it by its
-    /// sensor time when it has one, else by the frame.
-    pub(super) fn force(&mut self, reading: &SensorReading, frame: u64, telemetry: &Telemetry) {
+    /// sensor time when it has one, else by the frame. Returns whether it was taken (a
+    /// reading that was feeds the channel's watchdog).
+    pub(super) fn force(
+        &mut self,
+        reading: &SensorReading,
+        frame: u64,
+        telemetry: &Telemetry,
+    ) -> bool {
         if !reading.is_finite() {
             telemetry.count_rejected();
-            return;
+            return false;
         }
         self.conditioner.push(reading);
-        self.watchdog.feed();
         let time = reading.time().map_or_else(
             || ReadingTime::Arrival(Seconds(frame as f64 / self.rate_hz)),
             ReadingTime::Sensor,
@@ -119,26 +117,28 @@ impl Channel {
         if let Some(strike) = self.detector.update(reading.total(), time) {
             self.strike(strike.intensity, telemetry);
         }
+        true
     }
 
-    /// An explicit step from a source that detects steps itself.
-    pub(super) fn step(&mut self, intensity: f32, telemetry: &Telemetry) {
+    /// An explicit step from a source that detects steps itself. Returns whether it was
+    /// taken (a step that was keeps the channel alive for its window).
+    pub(super) fn step(&mut self, intensity: f32, telemetry: &Telemetry) -> bool {
         if !intensity.is_finite() {
             telemetry.count_rejected();
-            return;
+            return false;
         }
-        self.watchdog.feed_step();
         if let (true, Some(grounds)) = (self.physical[self.current], &mut self.grounds) {
             // No force will follow: the physical model plays a nominal step itself.
             telemetry.count_strike();
             grounds[self.current].step(intensity.clamp(0.0, 4.0));
-            return;
+            return true;
         }
         self.strike(intensity.clamp(0.0, 4.0), telemetry);
         // A step event is an impulse whatever the drive: there is no force to follow.
         if self.drive != DriveKind::Impulse {
             self.pending_impulse += intensity.clamp(0.0, 4.0);
         }
+        true
     }
 
     fn strike(&mut self, intensity: f32, telemetry: &Telemetry) {
@@ -154,7 +154,9 @@ impl Channel {
         }
     }
 
-    /// Renders `out.len()` samples (at most `max_block`). Returns non-finite resets.
+    /// Renders `out.len()` samples (at most `max_block`): the synthesis only; the engine's
+    /// output stage ([`crate::safety::OutputStage`]) takes it from there. Returns
+    /// non-finite resets.
     pub(super) fn render(&mut self, out: &mut [f32]) -> u32 {
         let n = out.len().min(self.drive_buf.len());
         let drive = &mut self.drive_buf[..n];
@@ -244,9 +246,6 @@ impl Channel {
                 }
             }
             out[..n].copy_from_slice(&self.out_a[..n]);
-        }
-        for y in &mut out[..n] {
-            *y *= self.watchdog.tick();
         }
         resets
     }

@@ -39,9 +39,14 @@
 //! # Output
 //!
 //! Channel `c` goes to device channel `c`; device channels beyond the engine's are zero.
-//! Each output channel goes through the configured compensation (the device equalizer and
-//! the limb filter, [`EngineConfig::compensation`]) and then its own [`Limiter`]; a
-//! [`Fader`] ramps everything in at start and out at [`Controller::stop`].
+//! Each channel's synthesis leaves through its own [`OutputStage`], the one place where
+//! the engine's samples become output: the configured compensation (the device equalizer
+//! and the limb filter, [`EngineConfig::compensation`]), then the watchdog, the output
+//! gain and the [`Fader`] (which ramps everything in at start and out at
+//! [`Controller::stop`]), then the non-finite guard and the limiter's ceiling. Nothing
+//! runs after it, so the safety stages hold for every model kind and every compensation
+//! ([`crate::safety`]). A channel without a device channel runs its stage too, so its
+//! state stays in time.
 
 mod channel;
 pub mod clock;
@@ -59,7 +64,7 @@ use crate::compensation::chain::{Compensation, CompensationChain};
 use crate::force::drive::{DriveKind, Polarity};
 use crate::force::steps::DetectorConfig;
 use crate::material::Library;
-use crate::safety::{Fader, Limiter, LimiterReport, WatchdogConfig};
+use crate::safety::{Fader, LimiterReport, OutputStage, WatchdogConfig};
 use crate::synthesis::{PreparedMaterial, VoiceConfig, VoiceError};
 use crate::units::{Decibels, Hz, Newtons, SampleRate, Seconds};
 use channel::Channel;
@@ -444,9 +449,8 @@ pub struct Engine {
         reason = "materials are swapped by pointer and freed elsewhere"
     )]
     bank: Vec<Box<PreparedMaterial>>,
-    limiters: Vec<Limiter>,
-    /// One per channel, or none when there is no compensation.
-    chains: Vec<CompensationChain>,
+    /// One per channel: compensation, watchdog, gain and fade, limiter.
+    stages: Vec<OutputStage>,
     fader: Fader,
     gain: f32,
     frame: u64,
@@ -522,19 +526,29 @@ pub fn build(
     for (ch, slot) in channels.iter_mut().zip(initial) {
         ch.set_material(*slot, &bank[usize::from(*slot)]);
     }
-    let chains = if config.compensation.is_identity() {
-        Vec::new()
-    } else {
-        (0..config.channels)
-            .map(|_| CompensationChain::new(&config.compensation, config.rate, 64))
-            .collect::<Result<_, _>>()?
-    };
+    let stages = (0..config.channels)
+        .map(|_| {
+            let chain = if config.compensation.is_identity() {
+                None
+            } else {
+                Some(CompensationChain::new(
+                    &config.compensation,
+                    config.rate,
+                    64,
+                )?)
+            };
+            Ok(OutputStage::new(
+                chain,
+                &config.watchdog,
+                config.ceiling,
+                config.release,
+                config.rate,
+            ))
+        })
+        .collect::<Result<Vec<_>, CompensationError>>()?;
     let engine = Engine {
         rate: config.rate,
-        chains,
-        limiters: (0..config.channels)
-            .map(|_| Limiter::new(config.ceiling, config.release, config.rate))
-            .collect(),
+        stages,
         channels,
         bank,
         fader: Fader::fade_in(config.fade, config.rate),
@@ -666,15 +680,24 @@ impl Engine {
 
     fn apply(&mut self, event: Event) {
         let frame = self.frame;
-        let Some(channel) = self.channels.get_mut(usize::from(event.channel())) else {
+        let index = usize::from(event.channel());
+        let (Some(channel), Some(stage)) =
+            (self.channels.get_mut(index), self.stages.get_mut(index))
+        else {
             self.telemetry.count_rejected();
             return;
         };
         match event {
             Event::Force { reading, .. } => {
-                channel.force(&reading, frame, &self.telemetry);
+                if channel.force(&reading, frame, &self.telemetry) {
+                    stage.feed();
+                }
             }
-            Event::Step { intensity, .. } => channel.step(intensity, &self.telemetry),
+            Event::Step { intensity, .. } => {
+                if channel.step(intensity, &self.telemetry) {
+                    stage.feed_step();
+                }
+            }
             Event::Material { slot, .. } => match self.bank.get(usize::from(slot)) {
                 Some(m) => channel.set_material(slot, m),
                 None => self.telemetry.count_rejected(),
@@ -693,10 +716,10 @@ impl Engine {
             *g = self.fader.tick() * self.gain;
         }
         let mut channel_buf = [0.0f32; 64];
-        for (c, (channel, limiter)) in self
+        for (c, (channel, stage)) in self
             .channels
             .iter_mut()
-            .zip(self.limiters.iter_mut())
+            .zip(self.stages.iter_mut())
             .enumerate()
         {
             // Render in sub-blocks through a stack buffer: no per-channel output storage.
@@ -706,14 +729,11 @@ impl Engine {
                 let len = (n - start).min(channel_buf.len());
                 let buf = &mut channel_buf[..len];
                 resets += channel.render(buf);
-                if let Some(chain) = self.chains.get_mut(c) {
-                    resets += chain.process(buf);
-                }
+                resets += stage.process(buf, &fade[start..start + len], &mut report);
                 if c < device_channels {
-                    for (i, y) in buf.iter().enumerate() {
-                        let v = limiter.tick(y * fade[start + i], &mut report);
+                    for (i, v) in buf.iter().enumerate() {
                         self.peak = self.peak.max(v.abs());
-                        out[(start + i) * device_channels + c] = v;
+                        out[(start + i) * device_channels + c] = *v;
                     }
                 }
                 start += len;
@@ -738,7 +758,7 @@ impl Engine {
             t.anchor_frame.store(anchor.frame, Ordering::Relaxed);
         }
         t.resyncs.store(self.clock.resyncs(), Ordering::Relaxed);
-        let trips: u64 = self.channels.iter().map(Channel::watchdog_trips).sum();
+        let trips: u64 = self.stages.iter().map(OutputStage::watchdog_trips).sum();
         t.watchdog_trips.store(trips, Ordering::Relaxed);
     }
 }

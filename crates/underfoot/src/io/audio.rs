@@ -102,6 +102,7 @@ use cpal::{
 use super::IoError;
 use crate::compensation::CompensationError;
 use crate::compensation::sweep::Device;
+use crate::safety::{Limiter, LimiterReport};
 use crate::units::{SampleRate, Seconds};
 
 /// The device's sample format, as cpal names it.
@@ -440,6 +441,10 @@ pub struct LoopConfig {
     /// Playbacks tried, in the same streams, before giving up on recordings with xruns
     /// (an xrun leaves a gap that shifts the rest of the recording).
     pub attempts: u32,
+    /// The ceiling of the hard limiter the excitation passes last, with the non-finite
+    /// guard, as every output does ([`crate::safety`]; default 0 dB, full scale, which a
+    /// valid sweep never reaches, so a measurement is untouched).
+    pub ceiling: Decibels,
 }
 
 impl LoopConfig {
@@ -455,6 +460,7 @@ impl LoopConfig {
             lead_in: Seconds(0.2),
             tail: Seconds(0.5),
             attempts: 3,
+            ceiling: Decibels(0.0),
         }
     }
 }
@@ -558,6 +564,15 @@ impl AudioLoop {
         if cfg.attempts == 0 {
             return Err(unsupported(&cfg.output, "zero attempts".into()));
         }
+        if !(cfg.ceiling.0.is_finite() && cfg.ceiling.0 <= 0.0) {
+            return Err(unsupported(
+                &cfg.output,
+                format!(
+                    "a ceiling of {}: need a finite level of at most 0 dB",
+                    cfg.ceiling
+                ),
+            ));
+        }
         for (name, t) in [("lead-in", cfg.lead_in), ("tail", cfg.tail)] {
             if !(t.0.is_finite() && t.0 >= 0.0) {
                 return Err(unsupported(
@@ -618,6 +633,11 @@ impl AudioLoop {
         // Past the end until the first attempt: silence.
         let mut position = program.len();
         let mut seen_attempt = 0_u32;
+        // The excitation leaves through the same last stage as the engine's output: the
+        // non-finite guard and the ceiling (a sweep has no sensor input to watch; it ends
+        // by itself, and the output is silence past it).
+        let mut limiter = Limiter::new(cfg.ceiling, Seconds(0.05), rate);
+        let mut report = LimiterReport::default();
         let output = AudioOutput::start(&cfg.output, move |out: &mut [f32], channels: usize| {
             out.fill(0.0);
             let attempt = output_side.attempt.load(Ordering::Acquire);
@@ -632,7 +652,7 @@ impl AudioLoop {
                 .zip(program.get(position..).unwrap_or_default())
             {
                 if let Some(sample) = frame.get_mut(out_channel) {
-                    *sample = x;
+                    *sample = limiter.tick(x, &mut report);
                 }
                 position += 1;
             }
@@ -1471,19 +1491,22 @@ where
     }
 }
 
-/// The largest `f32` below 1.0, so that full scale stays inside a 24-bit integer.
-const BELOW_ONE: f32 = 1.0 - f32::EPSILON / 2.0;
-
-/// One sample to the device format. Integer formats are clamped to full scale first:
-/// the conversion multiplies by 2^(bits-1), and +1.0 would overflow a 24-bit container
-/// into a negative full-scale value. NaN becomes silence.
+/// One sample to the device format. Integer formats get the sample already on their
+/// grid: [`quantize`](crate::safety::quantize)d (truncated towards zero, so never past
+/// the limiter's ceiling, whatever rounding the format conversion does) to the format's
+/// bits, at most 24 (what an `f32` holds exactly), and back to the exact `f32` of that
+/// code, which the conversion then only scales. That also keeps full scale inside the
+/// container (+1.0 would overflow a 24-bit one into a negative full-scale value). NaN
+/// becomes silence.
 fn to_device<T: SizedSample + FromSample<f32>>(x: f32) -> T {
     if T::FORMAT.is_float() {
         T::from_sample(x)
     } else if x.is_nan() {
         T::EQUILIBRIUM
     } else {
-        T::from_sample(x.clamp(-1.0, BELOW_ONE))
+        let bits = T::FORMAT.bits_per_sample().clamp(2, 24);
+        let full = (1u32 << (bits - 1)) as f32;
+        T::from_sample(crate::safety::quantize(x, bits) as f32 / full)
     }
 }
 
@@ -1652,6 +1675,15 @@ mod tests {
     #[test]
     fn integer_conversion_clamps_and_silences_nan() {
         assert_eq!(to_device::<i16>(2.0), i16::MAX);
+        // The -6 dB ceiling is 16422.9 codes: rounded it was 16423, one above.
+        let ceiling = crate::units::Decibels(-6.0).to_amplitude() as f32;
+        let c16 = f64::from(ceiling) * 32768.0;
+        assert!(f64::from(to_device::<i16>(ceiling)) <= c16);
+        assert!(f64::from(to_device::<i16>(-ceiling)) >= -c16);
+        let c24 = f64::from(ceiling) * 8_388_608.0;
+        assert!(f64::from(to_device::<cpal::I24>(ceiling).inner()) <= c24);
+        assert!(f64::from(to_device::<i32>(ceiling)) <= f64::from(ceiling) * 2_147_483_648.0);
+        assert!(i32::from(to_device::<u16>(ceiling)) - 32_768 <= c16 as i32);
         assert_eq!(to_device::<i16>(-2.0), i16::MIN);
         assert_eq!(to_device::<i16>(f32::NAN), 0);
         assert_eq!(to_device::<u16>(f32::NAN), 32_768);

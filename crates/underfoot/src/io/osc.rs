@@ -8,6 +8,10 @@
 //! | `/underfoot/step` | channel, optional intensity (default 1.0) | [`Event::Step`] |
 //! | `/underfoot/material` | channel, material name (string) | [`Event::Material`] |
 //!
+//! A step plays for [`STEP_WINDOW`](crate::engine::event::STEP_WINDOW) (0.5 s) and the
+//! channel is silent within 100 ms after it, unless more steps or forces arrive: a sender
+//! that stops sending leaves no actuator on.
+//!
 //! Numbers may be sent as `i` (int32), `h` (int64), `f` (float32) or `d` (float64): game
 //! engines differ in what their OSC plug-ins send. A channel sent as a float must be a whole
 //! number. A material name is looked up in the table given to [`OscSource::bind`], in the

@@ -1,7 +1,8 @@
 //! Vibration to a WAV file.
 //!
 //! [`WavSink`] takes interleaved `f32` blocks as the engine renders them and writes 32-bit
-//! float, 16-bit or 24-bit integer PCM. Integer samples are `round(x * 2^(bits-1))`,
+//! float, 16-bit or 24-bit integer PCM. Integer samples are `x * 2^(bits-1)` truncated
+//! towards zero ([`crate::safety::quantize`]: never rounded past the limiter's ceiling),
 //! clamped to the format's range: +1.0 lands one step below full scale and anything
 //! beyond +-1 is clipped and counted in [`WavSummary::clipped_samples`].
 //!
@@ -218,11 +219,6 @@ impl WavSink {
             return Err(unsupported("an earlier write failed".into()));
         }
 
-        let full_scale = match self.format {
-            WavFormat::Float32 => 1.0,
-            WavFormat::Int16 => f64::from(1_u32 << 15),
-            WavFormat::Int24 => f64::from(1_u32 << 23),
-        };
         for &x in samples {
             let x = if x.is_finite() {
                 self.peak = self.peak.max(x.abs());
@@ -237,11 +233,8 @@ impl WavSink {
                     if x.abs() > 1.0 {
                         self.clipped += 1;
                     }
-                    let code = (f64::from(x) * full_scale)
-                        .round()
-                        .clamp(-full_scale, full_scale - 1.0);
-                    // In range by the clamp: at most 2^23 in magnitude.
-                    writer.write_sample(code as i32)
+                    // Truncated, never rounded up: never past the ceiling (`safety`).
+                    writer.write_sample(crate::safety::quantize(x, self.format.bits().into()))
                 }
             };
             if let Err(e) = written {
@@ -392,7 +385,7 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         for (format, bits, tolerance) in [
             (WavFormat::Float32, 32, 0.0),
-            // Rounding is half a step; +1.0 lands one step below full scale.
+            // Truncation is under a step; +1.0 lands one step below full scale.
             (WavFormat::Int16, 16, 1.0 / 32_768.0),
             (WavFormat::Int24, 24, 1.0 / 8_388_608.0),
         ] {

@@ -334,7 +334,9 @@ impl Aggregate {
             peak: 0.0,
             budget: 0.0,
         };
-        let slowest = modes.iter().fold(0.0f64, |m, mode| m.max(mode.decay.0));
+        let slowest = modes
+            .iter()
+            .fold(0.0f64, |m, mode| m.max(mode.played_decay().0));
         let mut rng = SplitMix64::new(seed);
         let to_go = exponential(&mut rng);
         Ok(Self {

@@ -870,7 +870,10 @@ fn pooled_lpc_modes(
         .filter(|p| p.im > 0.0 && p.norm() < 1.0)
         .map(|p| Mode {
             frequency: Hz(p.arg() * fs / std::f64::consts::TAU),
-            decay: Seconds((-1.0 / (fs * p.norm().ln())).min(max_decay.0)),
+            decay: Seconds(
+                (-1.0 / (fs * p.norm().ln()))
+                    .min(max_decay.0.min(super::resonator::LONGEST_DECAY.0)),
+            ),
             gain: 1.0,
         })
         .filter(|m| m.frequency.0 >= 0.5 * a.band.lo.0 && m.frequency.0 <= a.band.hi.0)

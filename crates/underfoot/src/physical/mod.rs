@@ -66,6 +66,20 @@ pub enum PhysicalError {
         /// Its decay time.
         decay: Seconds,
     },
+    /// A stored mode rings longer than the cap every physical model is played with
+    /// ([`resonator::LONGEST_DECAY`]).
+    #[error(
+        "mode {index}: decay time {decay} is longer than the {limit} any mode may ring \
+         (recalibrate the material)"
+    )]
+    DecayTooLong {
+        /// Which mode.
+        index: usize,
+        /// Its decay time.
+        decay: Seconds,
+        /// The cap.
+        limit: Seconds,
+    },
     /// A mode's gain is not finite.
     #[error("mode {index}: gain {gain} must be finite")]
     BadGain {

@@ -2,6 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::resonator::LONGEST_DECAY;
 use super::{AggregateParams, ImpactParams, Mode, PhysicalError};
 use crate::units::Hz;
 
@@ -111,6 +112,16 @@ impl PhysicalModel {
         // checks it against the Nyquist frequency when it is prepared.
         for (index, m) in self.modes.iter().enumerate() {
             m.check(index, Hz(f64::INFINITY))?;
+            // Refused rather than clamped, as a filter pole beyond its model's limit is: the
+            // file would not describe what plays (only the format-1 upgrade of IIR filters
+            // clamps, because that reproduces what their voice played).
+            if m.decay.0 > LONGEST_DECAY.0 {
+                return Err(PhysicalError::DecayTooLong {
+                    index,
+                    decay: m.decay,
+                    limit: LONGEST_DECAY,
+                });
+            }
         }
         let h = &self.hammer;
         let positive = |v: f64| v.is_finite() && v > 0.0;

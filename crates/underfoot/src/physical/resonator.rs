@@ -76,6 +76,14 @@ use super::PhysicalError;
 use crate::signal::{Biquad, Sos};
 use crate::units::{Hz, SampleRate, Seconds};
 
+/// The longest e-fold decay a mode plays, the physical counterpart of the IIR voice's
+/// [`VoiceConfig::longest_decay`](crate::synthesis::VoiceConfig::longest_decay) and the
+/// calibration's `max_decay` (both 0.5 s): no ground rings for seconds, and an actuator on
+/// skin must not. A library refuses a stored mode beyond it
+/// ([`PhysicalModel::validate`](super::PhysicalModel::validate)); a bank built in code
+/// plays any longer mode at this decay ([`Mode::played_decay`]).
+pub const LONGEST_DECAY: Seconds = Seconds(0.5);
+
 /// One damped mode of a surface at the point struck.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Mode {
@@ -91,6 +99,12 @@ pub struct Mode {
 }
 
 impl Mode {
+    /// The decay the mode is played with: its own, at most [`LONGEST_DECAY`].
+    #[must_use]
+    pub fn played_decay(&self) -> Seconds {
+        Seconds(self.decay.0.min(LONGEST_DECAY.0))
+    }
+
     /// Checks mode `index`: a frequency in `(0, below)`, a positive and finite decay time,
     /// a finite gain.
     ///
@@ -202,7 +216,9 @@ impl ResonatorBank {
         self.first_sample = 0.0;
         for (k, m) in self.modes.iter().enumerate() {
             let f = (m.frequency.0 * self.scale).min(ceiling);
-            let slope = Complex64::new(-1.0 / m.decay.0, std::f64::consts::TAU * f);
+            // The cap applies here, where every physical model is played, so a bank built
+            // in code is held to it as a loaded one is.
+            let slope = Complex64::new(-1.0 / m.played_decay().0, std::f64::consts::TAU * f);
             let pole = (slope / fs).exp();
             self.pole[k] = pole;
             // The contact sees the driving-point gain |g|; the output, the signed one.

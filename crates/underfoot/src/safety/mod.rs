@@ -1,20 +1,128 @@
 //! Safety: what stands between the synthesis and a person's skin.
 //!
-//! Every output path of the engine ends in these, in this order:
+//! # The output stage
 //!
-//! 1. **Non-finite guard.** A voice that produces a NaN or an infinity resets its state and
-//!    writes silence ([`Voice::process`](crate::synthesis::Voice::process)); the
-//!    [`Limiter`] checks again, so nothing non-finite reaches a device whatever happened
-//!    upstream. Every such event is counted and reported.
+//! Every sample that reaches a device or a file leaves the engine through one
+//! [`OutputStage`] per channel, and nothing runs after it but the conversion to the
+//! device's format. In order:
+//!
+//! 1. **Compensation** (the device equalizer and the limb filter, `--eq` and `--user`):
+//!    it is part of the signal, so it runs *before* every safety stage. A compensation
+//!    filter rings on after its input stops (a badly damped limb filter for hundreds of
+//!    milliseconds); were the watchdog before it, that ring would outlast the input.
 //! 2. **Watchdog** ([`Watchdog`]): when a channel's input stops (a cable pulled, a sender
-//!    crashed), its output fades to silence instead of ringing on or freezing.
-//! 3. **Fader** ([`Fader`]): start-up and shut-down ramp the whole output in and out, so
-//!    the actuator never sees a step (a pop).
-//! 4. **Hard limiter** ([`Limiter`]): no sample above the ceiling gets through, however
-//!    loud the filter: gain reduction is instantaneous (no look-ahead, so no latency), the
-//!    gain recovers smoothly, and a final clamp guards against rounding.
+//!    crashed), its gain fades to exactly zero: the output is silent within
+//!    `timeout + fade` (100 ms by default) of the last force reading, whatever the model
+//!    and the compensation, and within that of the end of a step's
+//!    [`STEP_WINDOW`](crate::engine::event::STEP_WINDOW) for a channel fed only steps.
+//! 3. **Gain and fader** ([`Fader`]): the output gain, and the start-up and shut-down ramps
+//!    of the whole output, so the actuator never sees a step (a pop).
+//! 4. **Non-finite guard and hard limiter** ([`Limiter`]): a NaN or an infinity becomes
+//!    silence (a voice or a compensation chain that produces one has already reset itself
+//!    and silenced its block; the limiter checks again whatever happened upstream), and no
+//!    sample above the ceiling gets through, however loud the filter: gain reduction is
+//!    instantaneous (no look-ahead, so no latency), the gain recovers smoothly, and a final
+//!    clamp guards against rounding. Every such event is counted and reported.
+//!
+//! # Quantisation
+//!
+//! A device or a file in an integer format gets [`quantize`]`(x, bits)`: `x · 2^(bits-1)`
+//! truncated towards zero. Truncation never increases a magnitude, so a sample at the
+//! ceiling `c` becomes at most `⌊c · 2^(bits-1)⌋`: rounding to the nearest code would
+//! write one code *above* the ceiling for half of all ceilings (-6 dB is 16422.9 in 16
+//! bits; rounded, 16423). The price is a bias of half a step towards zero, 96 dB below
+//! full scale in 16 bits.
 
+use crate::compensation::chain::CompensationChain;
 use crate::units::{Decibels, SampleRate, Seconds};
+
+/// `x · 2^(bits-1)` truncated towards zero, within the `bits`-bit two's complement range
+/// (`bits` from 2 to 32). NaN is 0; infinities and anything beyond full scale are the
+/// extreme codes. Never rounds a magnitude up, so never past a ceiling (module docs).
+#[must_use]
+#[inline]
+pub fn quantize(x: f32, bits: u32) -> i32 {
+    let bits = bits.clamp(2, 32);
+    let full = f64::from(1u32 << (bits - 1));
+    if x.is_nan() {
+        return 0;
+    }
+    // `as` saturates, and the clamp keeps the code inside `bits` bits.
+    (f64::from(x) * full).trunc().clamp(-full, full - 1.0) as i32
+}
+
+/// The last stages before a device or a file for one channel: compensation, watchdog,
+/// gain and fade, non-finite guard and limiter, in that order (module docs). Never
+/// allocates after construction.
+#[derive(Debug)]
+pub struct OutputStage {
+    compensation: Option<CompensationChain>,
+    watchdog: Watchdog,
+    limiter: Limiter,
+}
+
+impl OutputStage {
+    /// A stage with `compensation` (or none), a watchdog that starts silent (no input
+    /// yet), and a limiter at `ceiling`.
+    #[must_use]
+    pub fn new(
+        compensation: Option<CompensationChain>,
+        watchdog: &WatchdogConfig,
+        ceiling: Decibels,
+        release: Seconds,
+        rate: SampleRate,
+    ) -> Self {
+        Self {
+            compensation,
+            watchdog: Watchdog::new(watchdog, rate),
+            limiter: Limiter::new(ceiling, release, rate),
+        }
+    }
+
+    /// Input arrived (a force reading).
+    pub fn feed(&mut self) {
+        self.watchdog.feed();
+    }
+
+    /// An explicit step arrived: stay alive for its window.
+    pub fn feed_step(&mut self) {
+        self.watchdog.feed_step();
+    }
+
+    /// Times the watchdog has faded the channel out.
+    #[must_use]
+    pub fn watchdog_trips(&self) -> u64 {
+        self.watchdog.trips
+    }
+
+    /// The limiter's ceiling as an amplitude.
+    #[must_use]
+    pub fn ceiling(&self) -> f32 {
+        self.limiter.ceiling()
+    }
+
+    /// Takes `buf` (the synthesis) to what the device may play, in place: every sample
+    /// is finite and within the ceiling, and zero once the watchdog has faded out. `gain`
+    /// holds the output gain times the fader for each sample (at least `buf.len()`).
+    /// Returns how many blocks the compensation silenced for a non-finite value.
+    #[inline]
+    pub fn process(&mut self, buf: &mut [f32], gain: &[f32], report: &mut LimiterReport) -> u32 {
+        let resets = match &mut self.compensation {
+            Some(chain) => chain.process(buf),
+            None => 0,
+        };
+        for (y, g) in buf.iter_mut().zip(gain) {
+            let w = self.watchdog.tick();
+            // A silenced channel is exactly zero, whatever the compensation still holds
+            // (even a non-finite value: there is nothing to count, nothing is played).
+            let limited = self
+                .limiter
+                .tick(if w == 0.0 { 0.0 } else { *y * w * g }, report);
+            *y = limited;
+        }
+        resets
+    }
+}
 
 /// A peak limiter with an absolute ceiling.
 ///
@@ -80,7 +188,8 @@ pub struct WatchdogConfig {
     /// How long the fade to silence takes (default 50 ms, so silence within 100 ms).
     pub fade: Seconds,
     /// How long an explicit step event keeps the channel alive, for sources that send
-    /// steps but no force (default 1 s: the ring of one step).
+    /// steps but no force (default [`STEP_WINDOW`](crate::engine::event::STEP_WINDOW),
+    /// the documented window of a strike: silence within `step_hold + fade` of a step).
     pub step_hold: Seconds,
     /// How long the gain takes to come back when input resumes (default 1 ms, so a
     /// step's onset is not lost).
@@ -92,7 +201,7 @@ impl Default for WatchdogConfig {
         Self {
             timeout: Seconds(0.05),
             fade: Seconds(0.05),
-            step_hold: Seconds(1.0),
+            step_hold: crate::engine::event::STEP_WINDOW,
             recover: Seconds(0.001),
         }
     }

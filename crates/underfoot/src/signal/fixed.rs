@@ -439,11 +439,15 @@ pub fn q15_cascade(sections: &[Q15Section], states: &mut [Q15State], x: i16) -> 
         .fold(i32::from(x) << 16, |v, (s, st)| s.tick(st, v))
 }
 
-/// A Q31 value rounded (half up) and saturated to Q15: for a 16-bit output device, at
-/// the very end of the signal path.
+/// A Q31 value truncated towards zero to Q15: for a 16-bit output device, at the very end
+/// of the signal path. Truncated, not rounded: a magnitude is never rounded up, so a
+/// signal clamped to a ceiling in Q31 stays within it in Q15 (as
+/// [`safety::quantize`](crate::safety::quantize) does for float output).
 #[must_use]
 pub fn q31_to_q15(y: i32) -> i16 {
-    ((i64::from(y) + (1 << 15)) >> 16).clamp(i64::from(i16::MIN), i64::from(i16::MAX)) as i16
+    let y = i64::from(y);
+    // |y| <= 2^31, so the result is within [-32768, 32767] without a clamp.
+    (if y >= 0 { y >> 16 } else { -((-y) >> 16) }) as i16
 }
 
 /// One sample through a Q31 cascade; sections beyond the shorter of the two slices are
@@ -602,9 +606,10 @@ mod tests {
             (x2, x1, y2, y1) = (x1, xf, y1, y);
             let got = q15_cascade(&[sec], &mut st, x);
             worst = worst.max((f64::from(got) / 65536.0 - y).abs());
-            // Rounded for a 16-bit device: half a step more.
-            let rounded = f64::from(q31_to_q15(got));
-            assert!((rounded - y).abs() <= 0.51, "{rounded} against {y}");
+            // Truncated for a 16-bit device: up to a step more, never away from zero.
+            let truncated = f64::from(q31_to_q15(got));
+            assert!((truncated - y).abs() <= 1.01, "{truncated} against {y}");
+            assert!(truncated.abs() <= (f64::from(got) / 65536.0).abs());
         }
         // In Q15 steps: the 32-bit path's rounding, through some 40 dB of resonance.
         assert!(worst <= 0.01, "{worst} steps");
@@ -724,7 +729,15 @@ mod tests {
         assert_eq!(q31_to_q15(i32::MAX), i16::MAX);
         assert_eq!(q31_to_q15(i32::MIN), i16::MIN);
         assert_eq!(q31_to_q15(-(1 << 15)), 0);
-        assert_eq!(q31_to_q15(1 << 15), 1);
+        assert_eq!(q31_to_q15(1 << 15), 0);
+        assert_eq!(q31_to_q15((1 << 16) - 1), 0);
+        assert_eq!(q31_to_q15(-(1 << 16) + 1), 0);
+        assert_eq!(q31_to_q15(-(1 << 16)), -1);
+        // A -6 dB ceiling in Q31 stays under it in Q15 (rounded, it was one code above).
+        let ceiling = 0.501_187_233_627_272_3_f64;
+        let c31 = (ceiling * 2_147_483_648.0).floor() as i32;
+        assert!(f64::from(q31_to_q15(c31)) <= ceiling * 32768.0);
+        assert!(f64::from(q31_to_q15(-c31)) >= -ceiling * 32768.0);
         // Out-of-range fields are clamped, not trusted.
         let odd = Q15Section {
             b_frac: 200,

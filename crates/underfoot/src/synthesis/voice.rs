@@ -151,6 +151,16 @@ pub enum VoiceError {
         /// Why.
         source: crate::physical::PhysicalError,
     },
+    /// A setting of the [`VoiceConfig`] is out of range.
+    #[error("voice setting {name} = {value} is out of range: {expected}")]
+    InvalidConfig {
+        /// The setting.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// The range it must lie in.
+        expected: &'static str,
+    },
     /// A post-filter setting does not fit the rate.
     #[error("material {name:?}: post filter: {reason}")]
     PostFilter {
@@ -228,6 +238,16 @@ impl PreparedMaterial {
         rate: SampleRate,
         config: &VoiceConfig,
     ) -> Result<Self, VoiceError> {
+        let longest = config.longest_decay.0;
+        // No "unlimited": an infinite or absent limit would let a fitted pole at the edge
+        // of stability ring for hours (the fit's own limits are at most 60 s too).
+        if !(longest.is_finite() && longest > 0.0 && longest <= 60.0) {
+            return Err(VoiceError::InvalidConfig {
+                name: "longest_decay",
+                value: longest,
+                expected: "a decay time in (0, 60] s",
+            });
+        }
         let name = model.name.clone();
         let sos = model
             .sos()
