@@ -74,7 +74,7 @@ float uf_f32_cascade(const uf_f32_section *sos, uf_f32_state *state, unsigned se
 int32_t uf_q15_cascade(const uf_q15_section *sos, uf_q15_state *state, unsigned sections, int16_t x);
 int32_t uf_q31_cascade(const uf_q31_section *sos, uf_q31_state *state, unsigned sections, int32_t x);
 
-/* A Q31 value rounded (half up) and saturated to Q15, for a 16-bit output. */
+/* A Q31 value truncated towards zero to Q15, for a 16-bit output: never past a ceiling. */
 int16_t uf_q31_to_q15(int32_t y);
 
 /* Fixed-point hard limit: saturate to +-ceiling. */
@@ -209,8 +209,9 @@ int32_t uf_q15_cascade(const uf_q15_section *sos, uf_q15_state *state, unsigned 
 }
 
 int16_t uf_q31_to_q15(int32_t y) {
-    int64_t out = ((int64_t)y + 32768) >> 16;
-    return (int16_t)(out > INT16_MAX ? INT16_MAX : out);
+    /* Truncated towards zero: a magnitude is never rounded up, so never past a ceiling. */
+    int64_t v = (int64_t)y;
+    return (int16_t)(v >= 0 ? v >> 16 : -((-v) >> 16));
 }
 
 int32_t uf_q31_cascade(const uf_q31_section *sos, uf_q31_state *state, unsigned sections, int32_t x) {
