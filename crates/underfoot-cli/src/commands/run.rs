@@ -21,6 +21,13 @@
 //! A session ends when a replay or walk has played out (plus one second to ring out),
 //! after `--duration`, on Ctrl-C or SIGTERM, or on Enter when stdin is a terminal; the
 //! output then fades out before the device is closed.
+//!
+//! A serial port that hangs up (or an interface board's) is reported on stderr and
+//! reopened with a backoff (100 ms doubling to 2 s) until it comes back, which is reported
+//! too; the engine's watchdog fades the output meanwhile. `--exit-on-disconnect` ends the
+//! session with an error instead. However a source behaves, the poll loop below never
+//! spins: a poll that reports anything but an open source is followed by a sleep for
+//! the rest of the poll period.
 
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -42,7 +49,7 @@ use underfoot::io::prosthetic::{self, ProstheticHost, SimulatorHandle};
 use underfoot::io::replay::ReplaySource;
 use underfoot::io::serial::{SerialConfig, SerialSource};
 use underfoot::io::wav::{WavFormat, WavSink};
-use underfoot::io::{EventSource, SourceState};
+use underfoot::io::{Backoff, EventSource, LinkEvent, SourceState};
 use underfoot::units::{Decibels, SampleRate, Seconds};
 
 use crate::commands::synth::SynthArgs;
@@ -103,6 +110,10 @@ pub struct RunArgs {
     /// (one curve per sensor of the frame, in frame order); replaces --newtons-per-count.
     #[arg(long, value_name = "FILE.json")]
     sensors: Option<PathBuf>,
+    /// When the serial port (or the interface's) is lost, exit with an error instead of
+    /// reopening it until it comes back.
+    #[arg(long = "exit-on-disconnect")]
+    exit_on_disconnect: bool,
     /// List the audio devices and exit.
     #[arg(long = "list-devices")]
     list_devices: bool,
@@ -189,6 +200,10 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         .map(|d| started + Duration::from_secs_f64(d.max(0.0)));
     let mut queue_full = 0u64;
     let mut ended_at = None;
+    // Set when the input was lost and --exit-on-disconnect asks to stop: the session
+    // still fades out and reports before the error.
+    let mut lost: Option<String> = None;
+    const POLL: Duration = Duration::from_millis(20);
     loop {
         if stop.load(Ordering::SeqCst) || deadline.is_some_and(|d| Instant::now() >= d) {
             break;
@@ -200,13 +215,26 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             thread::sleep(Duration::from_millis(20));
             continue;
         }
-        let state = source.poll(Duration::from_millis(20), &mut |event| {
+        let polled = Instant::now();
+        let state = source.poll(POLL, &mut |event| {
             if controller.send(TimedEvent::now(event)).is_err() {
                 queue_full += 1;
             }
         })?;
+        while let Some(event) = source.link_event() {
+            if let Some(message) = report_link(&event, args.exit_on_disconnect) {
+                lost = Some(message);
+            }
+        }
+        if lost.is_some() {
+            break;
+        }
         if state == SourceState::Ended && ends {
             ended_at = Some(Instant::now());
+        } else if state != SourceState::Open {
+            // A source that is lost or ended has nothing to wait for and may return at
+            // once: pace the loop so that it cannot spin.
+            thread::sleep(POLL.saturating_sub(polled.elapsed()));
         }
         controller.collect();
         if let Some(problem) = output.problem() {
@@ -232,10 +260,18 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         ),
         None => String::new(),
     };
+    let link = if s.disconnects > 0 {
+        format!(
+            "link: lost {} time(s), reconnected {} time(s)\n",
+            s.disconnects, s.reconnects
+        )
+    } else {
+        String::new()
+    };
     emit(&format!(
         "ran {:.1} s: {} strike(s), peak {:.1} dBFS, {} sample(s) limited, {} non-finite \
          silenced, {} watchdog fade(s)\ninput: {} event(s), {} rejected, {} byte(s) skipped, \
-         {} dropped (queue full)\n{clock}{interface_report}{device_report}\n",
+         {} dropped (queue full)\n{link}{clock}{interface_report}{device_report}\n",
         started.elapsed().as_secs_f64(),
         t.strikes,
         Decibels::from_amplitude(f64::from(t.peak).max(1e-12)).0,
@@ -246,7 +282,29 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         s.rejected,
         s.skipped_bytes,
         queue_full,
-    ))
+    ))?;
+    match lost {
+        Some(message) => bail!("{message}"),
+        None => Ok(()),
+    }
+}
+
+/// Says on stderr what happened to the input's device. With `exit`, a loss is not
+/// reported here but returned as the message the run ends with.
+fn report_link(event: &LinkEvent, exit: bool) -> Option<String> {
+    match event {
+        LinkEvent::Lost { .. } if exit => {
+            return Some(format!("input {event}; exiting (--exit-on-disconnect)"));
+        }
+        LinkEvent::Lost { .. } => eprintln!(
+            "underfoot: input {event}; reconnecting every {:.1} s, backing off to {:.0} s \
+             (--exit-on-disconnect to stop instead); the output fades to silence meanwhile",
+            Backoff::default().next_delay().as_secs_f64(),
+            Backoff::default().max().as_secs_f64()
+        ),
+        _ => eprintln!("underfoot: input {event}"),
+    }
+    None
 }
 
 enum Input {
@@ -261,7 +319,7 @@ fn interface_report(host: &ProstheticHost, sim: Option<SimulatorHandle>) -> anyh
     let mut text = format!(
         "interface: {} insole frame(s), {} rejected ({} unknown type), {} lost, {} servo \
          frame(s) sent, {} input timeout(s), {} non-finite force(s) held; servo update delay \
-         max {:.1} ms, mean {:.1} ms\n",
+         max {:.1} ms, mean {:.1} ms; heartbeat gap max {:.1} ms\n",
         h.insole_frames,
         h.rejected,
         h.unknown_type,
@@ -271,6 +329,7 @@ fn interface_report(host: &ProstheticHost, sim: Option<SimulatorHandle>) -> anyh
         h.non_finite,
         h.max_servo_delay.0 * 1e3,
         h.mean_servo_delay.0 * 1e3,
+        h.max_servo_gap.0 * 1e3,
     );
     if h.scaling.above_range + h.scaling.below_range + h.scaling.non_finite > 0 {
         text.push_str(&format!(

@@ -13,8 +13,18 @@
 //!
 //! Inputs implement [`EventSource`]: a blocking poll, run on its own thread, whose events
 //! go to the engine over its lock-free queue.
+//!
+//! # A lost device
+//!
+//! A serial port can hang up (a USB adapter pulled, the board reset, the far end of a
+//! pseudo-terminal closed). The source then reports [`SourceState::Disconnected`] and
+//! reopens the same path with a [`Backoff`] (100 ms, doubling to 2 s), reporting the loss
+//! and the return as [`LinkEvent`]s for the caller to print. While it waits, every poll
+//! still waits out its timeout: a poll never returns early with nothing to do, so a
+//! caller's loop cannot spin. No readings come meanwhile, so the engine's watchdog fades
+//! the output to silence, as for any input that goes quiet.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use crate::engine::Event;
 
@@ -36,8 +46,148 @@ pub mod wav;
 pub enum SourceState {
     /// More events may come.
     Open,
-    /// The source has ended (a replay reached its end, a port closed).
+    /// The source has ended (a replay reached its end, a simulated board its walk).
     Ended,
+    /// The device is gone (a port hung up) and the source is trying to reopen it; no
+    /// events come until it is back. A poll in this state still waits out its timeout.
+    Disconnected,
+}
+
+/// A change of a source's link to its device, for the caller to report.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum LinkEvent {
+    /// The device was lost; the source will try to reopen it.
+    Lost {
+        /// The device, port or path.
+        device: String,
+        /// What happened (the error as the system gave it).
+        reason: String,
+    },
+    /// The first attempt to reopen the device failed (later failures are only counted,
+    /// so that a long wait prints one line).
+    RetryFailed {
+        /// The device.
+        device: String,
+        /// Why it could not be opened.
+        reason: String,
+    },
+    /// The device is open again.
+    Back {
+        /// The device.
+        device: String,
+        /// How long it was gone.
+        after: Duration,
+        /// Attempts it took.
+        attempts: u32,
+    },
+}
+
+impl std::fmt::Display for LinkEvent {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            LinkEvent::Lost { device, reason } => write!(f, "{device}: lost ({reason})"),
+            LinkEvent::RetryFailed { device, reason } => {
+                write!(f, "{device}: cannot reopen yet ({reason}); still trying")
+            }
+            LinkEvent::Back {
+                device,
+                after,
+                attempts,
+            } => write!(
+                f,
+                "{device}: reconnected after {:.1} s ({attempts} attempt(s))",
+                after.as_secs_f64()
+            ),
+        }
+    }
+}
+
+/// Delays between attempts to reopen a lost device: `first`, doubling up to `max`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Backoff {
+    first: Duration,
+    max: Duration,
+    next: Duration,
+}
+
+impl Default for Backoff {
+    /// 100 ms doubling to 2 s: a board that resets is back within a few hundred
+    /// milliseconds, and a cable left unplugged costs one `open` every two seconds.
+    fn default() -> Self {
+        Self::new(Duration::from_millis(100), Duration::from_secs(2))
+    }
+}
+
+impl Backoff {
+    /// Starts at `first` (at least 1 ms), doubles up to `max` (at least `first`).
+    #[must_use]
+    pub fn new(first: Duration, max: Duration) -> Self {
+        let first = first.max(Duration::from_millis(1));
+        Self {
+            first,
+            max: max.max(first),
+            next: first,
+        }
+    }
+
+    /// The delay before the next attempt; the one after is twice as long, up to `max`.
+    pub fn next_delay(&mut self) -> Duration {
+        let d = self.next;
+        self.next = (self.next * 2).min(self.max);
+        d
+    }
+
+    /// Back to `first`, after a link that held.
+    pub fn reset(&mut self) {
+        self.next = self.first;
+    }
+
+    /// The longest delay.
+    #[must_use]
+    pub fn max(&self) -> Duration {
+        self.max
+    }
+}
+
+/// The reconnection state of a source whose device was lost: when to try next, since when,
+/// how many attempts. Shared by the serial sources.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Outage {
+    pub(crate) since: Instant,
+    pub(crate) next_attempt: Instant,
+    pub(crate) attempts: u32,
+}
+
+impl Outage {
+    /// Lost now; the first attempt after `backoff`'s next delay.
+    pub(crate) fn start(backoff: &mut Backoff) -> Self {
+        let now = Instant::now();
+        Self {
+            since: now,
+            next_attempt: now + backoff.next_delay(),
+            attempts: 0,
+        }
+    }
+
+    /// Waits until the next attempt is due or `timeout` has passed, whichever is first,
+    /// and says whether an attempt is due. Never returns at once unless one is due (or
+    /// `timeout` is zero), so a poll loop around it cannot spin.
+    pub(crate) fn wait(&self, timeout: Duration) -> bool {
+        let left = self.next_attempt.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return true;
+        }
+        std::thread::sleep(left.min(timeout));
+        Instant::now() >= self.next_attempt
+    }
+
+    /// An attempt failed: the next after `backoff`'s next delay. Returns whether it was
+    /// the first.
+    pub(crate) fn failed(&mut self, backoff: &mut Backoff) -> bool {
+        self.attempts += 1;
+        self.next_attempt = Instant::now() + backoff.next_delay();
+        self.attempts == 1
+    }
 }
 
 /// What a source has seen so far.
@@ -49,6 +199,10 @@ pub struct SourceStats {
     pub rejected: u64,
     /// Bytes skipped while looking for the next frame (serial only).
     pub skipped_bytes: u64,
+    /// Times the device was lost (serial only).
+    pub disconnects: u64,
+    /// Times it came back.
+    pub reconnects: u64,
 }
 
 /// A source of engine events, polled on its own thread (never the audio thread).
@@ -66,6 +220,12 @@ pub trait EventSource: Send {
 
     /// Counts so far.
     fn stats(&self) -> SourceStats;
+
+    /// The next change of the link to the device since the last call (a loss, a return),
+    /// oldest first; `None` for a source that has no device to lose.
+    fn link_event(&mut self) -> Option<LinkEvent> {
+        None
+    }
 }
 
 /// What went wrong with a device.

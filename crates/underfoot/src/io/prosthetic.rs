@@ -7,10 +7,11 @@
 //! - [`ProstheticHost`], the host: an [`EventSource`] that decodes insole frames, scales
 //!   them to newtons (per-sensor calibration or a factor, [`CountScale`]), hands one
 //!   [`Event::Force`] per vibration channel to the engine, feeds the
-//!   [`ServoBank`], and writes a servo frame every
-//!   `1 / servo_rate_hz` seconds. All of it runs in [`EventSource::poll`], i.e. on the
-//!   input poll thread, never the audio thread; a poll waits no longer than the next
-//!   servo frame is due, so the servo rate holds whatever timeout the caller passes.
+//!   [`ServoBank`], and writes a servo frame every `1 / servo_rate_hz` seconds from
+//!   its own heartbeat thread (*Heartbeat* below). Decoding runs in
+//!   [`EventSource::poll`], on the input poll thread; neither runs on the audio thread.
+//!   When a real board's port hangs up the host reopens it with a backoff (see
+//!   [`super`], *A lost device*).
 //! - [`SimulatedFoot`], the board, simulated: it walks the gait model of
 //!   [`crate::force::gait`] on one foot, splits the force between heel, midfoot and toe as
 //!   the centre of pressure rolls over, quantises it like an ADC, and moves its servos
@@ -32,27 +33,45 @@
 //!
 //! so the three add up to `F` and the load rolls heel, midfoot, toe in that order.
 //!
+//! # Heartbeat
+//!
+//! The firmware takes the servo frames as a heartbeat: with none for a few periods
+//! (about 200 ms) it returns the servos to rest. So the frames must not wait for the
+//! poll loop, which a loaded machine, a slow consumer or a long read can hold up (sent
+//! from the poll loop, they were seen to stop for 1.04 s under CPU load). A dedicated thread sends them on a
+//! deadline: frame `k` is due at `t₀ + k·T`, so a late wake-up delays one frame without
+//! shifting the ones after it, and a stall of more than a period resumes the cadence
+//! from now instead of sending a burst. Each tick advances the [`ServoBank`] by the real
+//! time since the last one (the rate limit and the insole timeout run on this clock, so
+//! the servos return to rest even if the poll thread stops) and writes its targets; the
+//! poll thread only hands in readings. The two share the bank under a mutex held for
+//! microseconds and never across a write; the heartbeat writes through its own handle
+//! on the port (a duplicate descriptor), whose timeout is one period, so a line that
+//! does not drain drops a frame rather than holding up the next.
+//! [`ProstheticStats::max_servo_gap`] reports the worst gap.
+//!
 //! # Timing and latency
 //!
 //! The host timestamps each insole frame as it is decoded and reports the delay from
 //! the oldest frame not yet reflected in a servo frame to the servo frame that reflects
-//! it ([`ProstheticStats::max_servo_delay`]): at most one servo period plus a poll's
-//! scheduling slack. The serial line adds `bytes × 10 / baud` each way (about 1.3 ms for a
+//! it ([`ProstheticStats::max_servo_delay`]): at most one servo period plus the
+//! heartbeat's scheduling slack. The serial line adds `bytes × 10 / baud` each way (about 1.3 ms for a
 //! 15-byte frame at 115200 baud), and the servo's own mechanics dominate everything.
 
+use std::collections::VecDeque;
 use std::io::{self, Read, Write};
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::thread;
 use std::time::{Duration, Instant};
 
 use serialport::SerialPort;
 
 use super::serial::{
-    Frame, FrameData, FrameDecoder, MAX_FRAME_SENSORS, MAX_FRAME_SERVOS, ServoFrame, encode_frame,
-    encode_servo_frame,
+    Frame, FrameData, FrameDecoder, MAX_FRAME_SENSORS, MAX_FRAME_SERVOS, ServoFrame, describe,
+    encode_frame, encode_servo_frame, is_quiet, open_port, push_event,
 };
-use super::{EventSource, IoError, SourceState, SourceStats};
+use super::{Backoff, EventSource, IoError, LinkEvent, Outage, SourceState, SourceStats};
 use crate::engine::Event;
 use crate::force::SensorReading;
 use crate::force::calibration::ApplyStats;
@@ -89,28 +108,31 @@ pub struct ProstheticStats {
     pub max_servo_delay: Seconds,
     /// The mean of the same delay over servo frames that reflected a new insole frame.
     pub mean_servo_delay: Seconds,
+    /// The longest time between two servo frames written while the port was open: the
+    /// heartbeat's worst gap, to hold against the firmware's timeout.
+    pub max_servo_gap: Seconds,
 }
 
 /// The host end of the interface: see the module doc.
 pub struct ProstheticHost {
-    port: Box<dyn SerialPort>,
+    /// The port insole frames are read from; `None` while it is lost.
+    port: Option<Box<dyn SerialPort>>,
     device: String,
+    /// The baud rate to reopen a lost port at (its path is `device`); `None` for a port
+    /// handed in, which ends the source when it hangs up.
+    reopen: Option<u32>,
+    backoff: Backoff,
+    outage: Option<Outage>,
+    up_since: Instant,
+    link_events: VecDeque<LinkEvent>,
+    disconnects: u64,
+    reconnects: u64,
     decoder: FrameDecoder,
     frame_sensors: usize,
     scale: CountScale,
     channels: Vec<VibrationChannel>,
-    bank: ServoBank,
     newtons: [f32; MAX_FRAME_SENSORS],
     period: Duration,
-    next_send: Instant,
-    last_update: Instant,
-    /// When the oldest insole frame not yet reflected in a servo frame was decoded.
-    pending_since: Option<Instant>,
-    delay_sum: f64,
-    delay_count: u64,
-    servo_seq: u16,
-    targets: [u16; MAX_FRAME_SERVOS],
-    wire: Vec<u8>,
     buf: [u8; 256],
     timeout: Duration,
     stats: ProstheticStats,
@@ -118,6 +140,149 @@ pub struct ProstheticHost {
     ended: bool,
     /// Set by a simulated board when its walk is over.
     finished: Option<Arc<AtomicBool>>,
+    shared: Arc<Mutex<Shared>>,
+    /// Only held: dropping it stops and joins the heartbeat thread.
+    _heartbeat: Heartbeat,
+}
+
+/// What the poll thread and the heartbeat thread share: the servos and the heartbeat's
+/// counts. Held for a few microseconds at a time, never while writing to the port.
+struct Shared {
+    bank: ServoBank,
+    /// When the oldest insole frame not yet reflected in a servo frame was decoded.
+    pending_since: Option<Instant>,
+    /// A reopened port's write handle, for the heartbeat to take.
+    new_writer: Option<Box<dyn SerialPort>>,
+    /// Set by the heartbeat when a write failed: the port is gone.
+    write_lost: Option<String>,
+    sent: u64,
+    delay_sum: f64,
+    delay_count: u64,
+    max_delay: f64,
+    max_gap: f64,
+}
+
+fn lock(shared: &Mutex<Shared>) -> MutexGuard<'_, Shared> {
+    // A panic on the other thread leaves plain counters and servo state, still usable.
+    shared.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// The heartbeat thread: stopped and joined on drop.
+struct Heartbeat {
+    stop: Arc<AtomicBool>,
+    thread: Option<thread::JoinHandle<()>>,
+}
+
+impl Drop for Heartbeat {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        if let Some(t) = self.thread.take() {
+            t.thread().unpark();
+            let _ = t.join();
+        }
+    }
+}
+
+impl Heartbeat {
+    fn start(
+        shared: Arc<Mutex<Shared>>,
+        writer: Box<dyn SerialPort>,
+        period: Duration,
+    ) -> Result<Self, io::Error> {
+        let stop = Arc::new(AtomicBool::new(false));
+        let thread = {
+            let stop = Arc::clone(&stop);
+            thread::Builder::new()
+                .name("servo-heartbeat".into())
+                .spawn(move || heartbeat(&shared, &stop, period, writer))?
+        };
+        Ok(Self {
+            stop,
+            thread: Some(thread),
+        })
+    }
+}
+
+/// Every `period`, on its own deadline: advances the servos by the real time since the
+/// last tick and writes their targets as one servo frame.
+fn heartbeat(
+    shared: &Mutex<Shared>,
+    stop: &AtomicBool,
+    period: Duration,
+    writer: Box<dyn SerialPort>,
+) {
+    let mut writer = Some(writer);
+    let mut seq: u16 = 0;
+    let mut targets = [0u16; MAX_FRAME_SERVOS];
+    let mut wire = Vec::with_capacity(64);
+    let mut last_update = Instant::now();
+    let mut last_sent: Option<Instant> = None;
+    let mut next = last_update + period;
+    while !stop.load(Ordering::SeqCst) {
+        let now = Instant::now();
+        if now < next {
+            // Unparked early by a stop; a spurious wake-up just goes round again.
+            thread::park_timeout(next - now);
+            continue;
+        }
+        // The next frame is due one period after this one was due, not after it went
+        // out, so wake-up latency does not accumulate into a slower rate ...
+        next += period;
+        if next <= now {
+            // ... unless the thread was stalled for over a period: resume the cadence
+            // from now rather than send a burst of catch-up frames.
+            next = now + period;
+        }
+        let (n, pending) = {
+            let mut s = lock(shared);
+            if let Some(w) = s.new_writer.take() {
+                writer = Some(w);
+                last_sent = None;
+            }
+            s.bank
+                .update(Seconds(now.duration_since(last_update).as_secs_f64()));
+            last_update = now;
+            let n = s.bank.commands(&mut targets);
+            let pending = if writer.is_some() {
+                s.pending_since.take()
+            } else {
+                None
+            };
+            (n, pending)
+        };
+        let (Some(w), Some(frame)) = (writer.as_mut(), ServoFrame::new(seq, &targets[..n])) else {
+            continue; // the port is lost, or no servos are configured
+        };
+        seq = seq.wrapping_add(1);
+        wire.clear();
+        encode_servo_frame(&frame, &mut wire);
+        let result = w.write_all(&wire);
+        let sent = Instant::now();
+        let mut s = lock(shared);
+        match result {
+            Ok(()) => {
+                s.sent += 1;
+                if let Some(last) = last_sent {
+                    s.max_gap = s.max_gap.max(sent.duration_since(last).as_secs_f64());
+                }
+                last_sent = Some(sent);
+                if let Some(since) = pending {
+                    let d = sent.duration_since(since).as_secs_f64();
+                    s.delay_sum += d;
+                    s.delay_count += 1;
+                    s.max_delay = s.max_delay.max(d);
+                }
+            }
+            // The line did not take the frame within a period (a board that stopped
+            // reading): this frame is dropped, the next one carries the same targets.
+            Err(e) if is_quiet(&e) => {}
+            Err(e) => {
+                writer = None;
+                last_sent = None;
+                s.write_lost = Some(describe(&e));
+            }
+        }
+    }
 }
 
 impl std::fmt::Debug for ProstheticHost {
@@ -130,10 +295,13 @@ impl std::fmt::Debug for ProstheticHost {
 }
 
 impl ProstheticHost {
-    /// The host end on a port that is already open; `device` names it in messages.
+    /// The host end on a port that is already open; `device` names it in messages. A
+    /// hang-up of this port ends the source (only [`open`] knows how to reopen one).
+    /// Starts the servo heartbeat thread, which writes to a clone of `port`.
     ///
     /// # Errors
-    /// [`IoError::Unsupported`] if the servos or scale do not fit the configuration.
+    /// [`IoError::Unsupported`] if the servos or scale do not fit the configuration;
+    /// [`IoError::Io`] if the port cannot be cloned or the thread cannot start.
     pub fn with_port(
         port: Box<dyn SerialPort>,
         device: &str,
@@ -154,33 +322,62 @@ impl ProstheticHost {
         )
         .map_err(|e| unsupported(e.to_string()))?;
         let period = Duration::from_secs_f64(1.0 / config.servo_rate.0.clamp(1.0, 500.0));
-        let now = Instant::now();
         let timeout = port.timeout();
-        Ok(Self {
-            port,
+        let writer = writer_of(port.as_ref(), period).map_err(|source| IoError::Io {
             device: device.to_owned(),
+            source,
+        })?;
+        let shared = Arc::new(Mutex::new(Shared {
+            bank,
+            pending_since: None,
+            new_writer: None,
+            write_lost: None,
+            sent: 0,
+            delay_sum: 0.0,
+            delay_count: 0,
+            max_delay: 0.0,
+            max_gap: 0.0,
+        }));
+        let heartbeat =
+            Heartbeat::start(Arc::clone(&shared), writer, period).map_err(|source| {
+                IoError::Io {
+                    device: device.to_owned(),
+                    source,
+                }
+            })?;
+        Ok(Self {
+            port: Some(port),
+            device: device.to_owned(),
+            reopen: None,
+            backoff: Backoff::default(),
+            outage: None,
+            up_since: Instant::now(),
+            link_events: VecDeque::new(),
+            disconnects: 0,
+            reconnects: 0,
             decoder: FrameDecoder::new(),
             frame_sensors: config.frame_sensors,
             scale: config.scale.clone(),
             channels: config.channels.clone(),
-            bank,
             newtons: [0.0; MAX_FRAME_SENSORS],
             period,
-            next_send: now + period,
-            last_update: now,
-            pending_since: None,
-            delay_sum: 0.0,
-            delay_count: 0,
-            servo_seq: 0,
-            targets: [0; MAX_FRAME_SERVOS],
-            wire: Vec::with_capacity(64),
             buf: [0; 256],
             timeout,
             stats: ProstheticStats::default(),
             mismatched: 0,
             ended: false,
             finished: None,
+            shared,
+            _heartbeat: heartbeat,
         })
+    }
+
+    /// Replaces the delays between attempts to reopen a lost port (default: 100 ms,
+    /// doubling to 2 s).
+    #[must_use]
+    pub fn with_backoff(mut self, backoff: Backoff) -> Self {
+        self.backoff = backoff;
+        self
     }
 
     /// Counts so far.
@@ -191,25 +388,29 @@ impl ProstheticHost {
         s.rejected = d.rejected + self.mismatched;
         s.unknown_type = d.unknown_type;
         s.lost = d.lost;
-        s.input_timeouts = self.bank.timeouts();
-        s.non_finite = self
+        let shared = lock(&self.shared);
+        s.input_timeouts = shared.bank.timeouts();
+        s.non_finite = shared
             .bank
             .servos()
             .iter()
             .map(|s| s.stats().non_finite)
             .sum();
-        s.mean_servo_delay = Seconds(if self.delay_count == 0 {
+        s.servo_frames_sent = shared.sent;
+        s.max_servo_delay = Seconds(shared.max_delay);
+        s.mean_servo_delay = Seconds(if shared.delay_count == 0 {
             0.0
         } else {
-            self.delay_sum / self.delay_count as f64
+            shared.delay_sum / shared.delay_count as f64
         });
+        s.max_servo_gap = Seconds(shared.max_gap);
         s
     }
 
-    /// The servos' current state.
+    /// The servos' current state (a copy: the heartbeat thread owns them).
     #[must_use]
-    pub fn servos(&self) -> &ServoBank {
-        &self.bank
+    pub fn servos(&self) -> ServoBank {
+        lock(&self.shared).bank.clone()
     }
 
     fn handle(&mut self, frame: Frame, out: &mut dyn FnMut(Event)) {
@@ -227,9 +428,12 @@ impl ProstheticHost {
             .scale
             .apply(counts, &mut self.newtons[..self.frame_sensors]);
         self.stats.scaling += s;
-        self.bank.reading(&self.newtons[..self.frame_sensors]);
+        {
+            let mut shared = lock(&self.shared);
+            shared.bank.reading(&self.newtons[..self.frame_sensors]);
+            shared.pending_since.get_or_insert_with(Instant::now);
+        }
         self.stats.insole_frames += 1;
-        self.pending_since.get_or_insert_with(Instant::now);
         for (k, ch) in self.channels.iter().enumerate() {
             let mut values = [0.0f32; crate::force::MAX_SENSORS];
             let n = ch.sensors.len().min(values.len());
@@ -245,52 +449,103 @@ impl ProstheticHost {
         }
     }
 
-    fn io_error(&self, e: io::Error) -> IoError {
-        IoError::Io {
-            device: self.device.clone(),
-            source: e,
+    /// The port is gone: reopen it later, or end if it cannot be reopened.
+    fn lose(&mut self, reason: String) {
+        self.port = None;
+        if self.reopen.is_none() {
+            self.ended = true;
+            return;
+        }
+        self.disconnects += 1;
+        if self.up_since.elapsed() >= self.backoff.max() {
+            self.backoff.reset();
+        }
+        self.outage = Some(Outage::start(&mut self.backoff));
+        push_event(
+            &mut self.link_events,
+            LinkEvent::Lost {
+                device: self.device.clone(),
+                reason,
+            },
+        );
+    }
+
+    /// While the port is lost: waits up to `timeout`, reopening it when an attempt is due,
+    /// and hands the heartbeat a write handle of the new port.
+    fn poll_lost(&mut self, timeout: Duration) -> SourceState {
+        let (Some(outage), Some(baud)) = (self.outage.as_mut(), self.reopen) else {
+            return SourceState::Ended;
+        };
+        if !outage.wait(timeout) {
+            return SourceState::Disconnected;
+        }
+        let opened = open_port(&self.device, baud, self.timeout).and_then(|port| {
+            let writer = writer_of(port.as_ref(), self.period).map_err(|e| IoError::Open {
+                device: self.device.clone(),
+                reason: e.to_string(),
+            })?;
+            Ok((port, writer))
+        });
+        match opened {
+            Ok((port, writer)) => {
+                let after = outage.since.elapsed();
+                let attempts = outage.attempts + 1;
+                {
+                    let mut shared = lock(&self.shared);
+                    shared.new_writer = Some(writer);
+                    shared.write_lost = None;
+                }
+                self.port = Some(port);
+                self.outage = None;
+                self.up_since = Instant::now();
+                self.reconnects += 1;
+                self.decoder.resync();
+                push_event(
+                    &mut self.link_events,
+                    LinkEvent::Back {
+                        device: self.device.clone(),
+                        after,
+                        attempts,
+                    },
+                );
+                SourceState::Open
+            }
+            Err(e) => {
+                if outage.failed(&mut self.backoff) {
+                    let reason = match e {
+                        IoError::Open { reason, .. } => reason,
+                        other => other.to_string(),
+                    };
+                    push_event(
+                        &mut self.link_events,
+                        LinkEvent::RetryFailed {
+                            device: self.device.clone(),
+                            reason,
+                        },
+                    );
+                }
+                SourceState::Disconnected
+            }
         }
     }
 
-    /// Updates the servos and writes a servo frame if one is due.
-    fn maybe_send(&mut self) -> Result<(), IoError> {
-        let now = Instant::now();
-        if now < self.next_send {
-            return Ok(());
+    fn state(&self) -> SourceState {
+        if self.ended {
+            SourceState::Ended
+        } else if self.port.is_none() {
+            SourceState::Disconnected
+        } else {
+            SourceState::Open
         }
-        let dt = now.duration_since(self.last_update).as_secs_f64();
-        self.last_update = now;
-        self.bank.update(Seconds(dt));
-        let n = self.bank.commands(&mut self.targets);
-        self.next_send += self.period;
-        if self.next_send < now {
-            // Fell behind (a stalled thread): resume the cadence from now rather than
-            // sending a burst of catch-up frames.
-            self.next_send = now + self.period;
-        }
-        let Some(frame) = ServoFrame::new(self.servo_seq, &self.targets[..n]) else {
-            return Ok(()); // no servos configured
-        };
-        self.servo_seq = self.servo_seq.wrapping_add(1);
-        self.wire.clear();
-        encode_servo_frame(&frame, &mut self.wire);
-        match self.port.write_all(&self.wire) {
-            Ok(()) => {}
-            Err(e) if e.kind() == io::ErrorKind::BrokenPipe => {
-                self.ended = true;
-                return Ok(());
-            }
-            Err(e) => return Err(self.io_error(e)),
-        }
-        self.stats.servo_frames_sent += 1;
-        if let Some(since) = self.pending_since.take() {
-            let d = now.duration_since(since).as_secs_f64();
-            self.delay_sum += d;
-            self.delay_count += 1;
-            self.stats.max_servo_delay = Seconds(self.stats.max_servo_delay.0.max(d));
-        }
-        Ok(())
     }
+}
+
+/// A second handle on `port` for the heartbeat to write with, its timeout one period so a
+/// line that does not drain cannot hold the heartbeat past the next frame.
+fn writer_of(port: &dyn SerialPort, period: Duration) -> io::Result<Box<dyn SerialPort>> {
+    let mut w = port.try_clone().map_err(io::Error::from)?;
+    w.set_timeout(period).map_err(io::Error::from)?;
+    Ok(w)
 }
 
 impl EventSource for ProstheticHost {
@@ -309,22 +564,29 @@ impl EventSource for ProstheticHost {
         {
             self.ended = true;
         }
-        // Wait no longer than the next servo frame is due, so the servo rate holds.
-        let until_send = self.next_send.saturating_duration_since(Instant::now());
-        let wait = timeout.min(until_send).max(Duration::from_millis(1));
+        let write_lost = lock(&self.shared).write_lost.take();
+        if let (Some(reason), Some(_)) = (write_lost, self.port.as_ref()) {
+            self.lose(reason);
+        }
+        let Some(port) = self.port.as_mut() else {
+            return Ok(self.poll_lost(timeout));
+        };
+        // Servo frames go out on the heartbeat thread, so this wait is only the caller's.
+        let wait = timeout.max(Duration::from_millis(1));
         if wait != self.timeout {
-            self.port
-                .set_timeout(wait)
-                .map_err(|e| IoError::Unsupported {
-                    device: self.device.clone(),
-                    reason: format!("cannot set a read timeout of {wait:?}: {e}"),
-                })?;
+            port.set_timeout(wait).map_err(|e| IoError::Unsupported {
+                device: self.device.clone(),
+                reason: format!("cannot set a read timeout of {wait:?}: {e}"),
+            })?;
             self.timeout = wait;
         }
         for _ in 0..16 {
-            match self.port.read(&mut self.buf) {
+            let Some(port) = self.port.as_mut() else {
+                break;
+            };
+            match port.read(&mut self.buf) {
                 Ok(0) => {
-                    self.ended = true;
+                    self.lose("the port hung up (end of file)".into());
                     break;
                 }
                 Ok(n) => {
@@ -334,31 +596,24 @@ impl EventSource for ProstheticHost {
                         }
                     }
                 }
-                Err(e) => match e.kind() {
-                    io::ErrorKind::TimedOut
-                    | io::ErrorKind::WouldBlock
-                    | io::ErrorKind::Interrupted => break,
-                    io::ErrorKind::BrokenPipe => {
-                        self.ended = true;
-                        break;
-                    }
-                    _ => return Err(self.io_error(e)),
-                },
+                Err(e) if is_quiet(&e) => break,
+                // Any other failure of an open port is the device going away (see
+                // `serial`): retrying the dead descriptor would return at once forever.
+                Err(e) => {
+                    self.lose(describe(&e));
+                    break;
+                }
             }
-            let waiting = self
-                .port
-                .bytes_to_read()
-                .map_err(|e| self.io_error(e.into()))?;
-            if waiting == 0 {
-                break;
+            match self.port.as_ref().map(|p| p.bytes_to_read()) {
+                Some(Ok(0)) | None => break,
+                Some(Ok(_)) => {}
+                Some(Err(e)) => {
+                    self.lose(e.to_string());
+                    break;
+                }
             }
         }
-        self.maybe_send()?;
-        Ok(if self.ended {
-            SourceState::Ended
-        } else {
-            SourceState::Open
-        })
+        Ok(self.state())
     }
 
     fn stats(&self) -> SourceStats {
@@ -367,7 +622,13 @@ impl EventSource for ProstheticHost {
             events: s.events,
             rejected: s.rejected,
             skipped_bytes: self.decoder.stats().skipped_bytes,
+            disconnects: self.disconnects,
+            reconnects: self.reconnects,
         }
+    }
+
+    fn link_event(&mut self) -> Option<LinkEvent> {
+        self.link_events.pop_front()
     }
 }
 
@@ -631,18 +892,11 @@ pub fn open(
 ) -> Result<(ProstheticHost, Option<SimulatorHandle>), IoError> {
     match &config.link {
         Link::Serial { port, baud } => {
-            let p = serialport::new(port, *baud)
-                .data_bits(serialport::DataBits::Eight)
-                .parity(serialport::Parity::None)
-                .stop_bits(serialport::StopBits::One)
-                .flow_control(serialport::FlowControl::None)
-                .timeout(Duration::from_millis(10))
-                .open()
-                .map_err(|e| IoError::Open {
-                    device: port.clone(),
-                    reason: e.to_string(),
-                })?;
-            Ok((ProstheticHost::with_port(p, port, config)?, None))
+            let p = open_port(port, *baud, Duration::from_millis(10))?;
+            let mut host = ProstheticHost::with_port(p, port, config)?;
+            // A real board's port is reopened when it hangs up.
+            host.reopen = Some(*baud);
+            Ok((host, None))
         }
         Link::Simulated(sim) => open_simulated(config, sim),
     }

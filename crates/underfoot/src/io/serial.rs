@@ -58,7 +58,9 @@
 //! The host does the same in the other direction: with no force frame for
 //! `insole_timeout_s` its servo targets return to rest at their rate limit, and the
 //! engine's watchdog fades the vibration out. Servo frames are never sent from the audio
-//! thread: the input poll thread decodes force frames and writes servo frames.
+//! thread: the input poll thread decodes force frames, and a heartbeat thread of its own
+//! writes servo frames on a fixed deadline, whatever the poll thread is doing
+//! (`io::prosthetic`, *Heartbeat*).
 //!
 //! ## Why these choices
 //!
@@ -99,15 +101,17 @@
 //! - [`encode_frame`], [`encode_servo_frame`] and [`FrameDecoder`]: the protocol, with no
 //!   I/O.
 //! - [`SerialSource`]: a serial port as an [`EventSource`], one [`Event::Force`] per channel
-//!   per frame.
+//!   per frame. When the port hangs up it reopens the same path with a [`Backoff`]
+//!   (see [`super`], *A lost device*).
 //! - [`ReferenceSender`]: the firmware's side, in Rust, for tests and simulation.
 
+use std::collections::VecDeque;
 use std::io::{self, Read, Write};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use serialport::SerialPort;
 
-use super::{EventSource, IoError, SourceState, SourceStats};
+use super::{Backoff, EventSource, IoError, LinkEvent, Outage, SourceState, SourceStats};
 use crate::engine::Event;
 use crate::force::calibration::ApplyStats;
 use crate::force::scale::CountScale;
@@ -424,6 +428,18 @@ impl FrameDecoder {
         None
     }
 
+    /// Forgets a partial chunk and the last sequence numbers, keeping the counts: the
+    /// stream starts afresh (a port reopened), so what came before neither joins the next
+    /// frame nor counts the outage as lost frames.
+    pub fn resync(&mut self) {
+        self.len = 0;
+        self.block_left = 0;
+        self.code = 0;
+        self.chunk_bytes = 0;
+        self.overflow = false;
+        self.last_seq = [None; 2];
+    }
+
     /// Takes `bytes` and hands each good frame to `on_frame`; errors are only counted.
     pub fn push(&mut self, bytes: &[u8], mut on_frame: impl FnMut(Frame)) {
         for &b in bytes {
@@ -578,8 +594,17 @@ fn check_config(config: &SerialConfig) -> Result<usize, String> {
 /// Frames whose sensor count differs from the layout are rejected and counted in
 /// [`SourceStats::rejected`] along with the decoder's rejections.
 pub struct SerialSource {
-    port: Box<dyn SerialPort>,
+    /// `None` while the port is lost.
+    port: Option<Box<dyn SerialPort>>,
     device: String,
+    baud: u32,
+    backoff: Backoff,
+    outage: Option<Outage>,
+    /// When the port was last reopened, to tell a link that held from one that flaps.
+    up_since: Instant,
+    link_events: VecDeque<LinkEvent>,
+    disconnects: u64,
+    reconnects: u64,
     layout: Vec<usize>,
     sensors: usize,
     scale: CountScale,
@@ -592,7 +617,6 @@ pub struct SerialSource {
     buf: [u8; 256],
     events: u64,
     mismatched: u64,
-    ended: bool,
 }
 
 impl std::fmt::Debug for SerialSource {
@@ -620,23 +644,12 @@ impl SerialSource {
             device: config.port.clone(),
             reason,
         })?;
-        let timeout = Duration::from_millis(10);
-        let port = serialport::new(&config.port, config.baud)
-            .data_bits(serialport::DataBits::Eight)
-            .parity(serialport::Parity::None)
-            .stop_bits(serialport::StopBits::One)
-            .flow_control(serialport::FlowControl::None)
-            .timeout(timeout)
-            .open()
-            .map_err(|e| IoError::Open {
-                device: config.port.clone(),
-                reason: e.to_string(),
-            })?;
+        let port = open_port(&config.port, config.baud, Duration::from_millis(10))?;
         Self::with_port(port, config)
     }
 
     /// Uses a port that is already open and configured; `config.port` and `config.baud` are
-    /// only used in messages.
+    /// what a reconnection reopens if the port hangs up.
     ///
     /// # Errors
     /// [`IoError::Unsupported`] for a bad layout or scale.
@@ -647,8 +660,15 @@ impl SerialSource {
         })?;
         let timeout = port.timeout();
         Ok(Self {
-            port,
+            port: Some(port),
             device: config.port.clone(),
+            baud: config.baud,
+            backoff: Backoff::default(),
+            outage: None,
+            up_since: Instant::now(),
+            link_events: VecDeque::new(),
+            disconnects: 0,
+            reconnects: 0,
             layout: config.layout.clone(),
             sensors,
             scale: config.scale.clone(),
@@ -659,8 +679,15 @@ impl SerialSource {
             buf: [0; 256],
             events: 0,
             mismatched: 0,
-            ended: false,
         })
+    }
+
+    /// Replaces the delays between attempts to reopen a lost port (default: 100 ms,
+    /// doubling to 2 s).
+    #[must_use]
+    pub fn with_backoff(mut self, backoff: Backoff) -> Self {
+        self.backoff = backoff;
+        self
     }
 
     /// The decoder's counts: checksum failures and lost frames, beyond [`SourceStats`].
@@ -677,30 +704,90 @@ impl SerialSource {
     }
 
     /// Reads once, waiting up to the port's timeout. `None` when nothing came or the port
-    /// has hung up (then `self.ended` is set).
-    fn read_some(&mut self) -> Result<Option<usize>, IoError> {
-        match self.port.read(&mut self.buf) {
+    /// was lost (then it is closed and an outage begins).
+    fn read_some(&mut self) -> Option<usize> {
+        let port = self.port.as_mut()?;
+        match port.read(&mut self.buf) {
+            // End of file on a terminal is a hang-up.
             Ok(0) => {
-                self.ended = true;
-                Ok(None)
+                self.lose("the port hung up (end of file)".into());
+                None
             }
-            Ok(n) => Ok(Some(n)),
-            Err(e) => match e.kind() {
-                io::ErrorKind::TimedOut
-                | io::ErrorKind::WouldBlock
-                | io::ErrorKind::Interrupted => Ok(None),
-                // serialport reports a hang-up (a USB adapter unplugged, the other end of a
-                // pseudo-terminal closed) as a broken pipe: the source has ended, which is not
-                // a failure of this side.
-                io::ErrorKind::BrokenPipe => {
-                    self.ended = true;
-                    Ok(None)
-                }
-                _ => Err(IoError::Io {
-                    device: self.device.clone(),
-                    source: e,
-                }),
+            Ok(n) => Some(n),
+            Err(e) if is_quiet(&e) => None,
+            // Every other failure of an open port is the device going away: serialport
+            // reports a hang-up (a USB adapter unplugged, the far end of a pseudo-terminal
+            // closed) as a broken pipe, a vanished device as EIO. Reopening is the only
+            // remedy, and retrying the dead descriptor would return at once forever.
+            Err(e) => {
+                self.lose(describe(&e));
+                None
+            }
+        }
+    }
+
+    /// Closes the lost port and starts waiting to reopen it.
+    fn lose(&mut self, reason: String) {
+        self.port = None;
+        self.disconnects += 1;
+        if self.up_since.elapsed() >= self.backoff.max() {
+            // The link held: a new outage starts from the shortest delay. One that drops
+            // again at once keeps backing off instead of reopening ten times a second.
+            self.backoff.reset();
+        }
+        self.outage = Some(Outage::start(&mut self.backoff));
+        push_event(
+            &mut self.link_events,
+            LinkEvent::Lost {
+                device: self.device.clone(),
+                reason,
             },
+        );
+    }
+
+    /// While the port is lost: waits up to `timeout`, reopening it when an attempt is due.
+    fn poll_lost(&mut self, timeout: Duration) -> SourceState {
+        let Some(outage) = self.outage.as_mut() else {
+            return SourceState::Open;
+        };
+        if !outage.wait(timeout) {
+            return SourceState::Disconnected;
+        }
+        match open_port(&self.device, self.baud, self.timeout) {
+            Ok(port) => {
+                let after = outage.since.elapsed();
+                let attempts = outage.attempts + 1;
+                self.port = Some(port);
+                self.outage = None;
+                self.up_since = Instant::now();
+                self.reconnects += 1;
+                self.decoder.resync();
+                push_event(
+                    &mut self.link_events,
+                    LinkEvent::Back {
+                        device: self.device.clone(),
+                        after,
+                        attempts,
+                    },
+                );
+                SourceState::Open
+            }
+            Err(e) => {
+                if outage.failed(&mut self.backoff) {
+                    let reason = match e {
+                        IoError::Open { reason, .. } => reason,
+                        other => other.to_string(),
+                    };
+                    push_event(
+                        &mut self.link_events,
+                        LinkEvent::RetryFailed {
+                            device: self.device.clone(),
+                            reason,
+                        },
+                    );
+                }
+                SourceState::Disconnected
+            }
         }
     }
 
@@ -747,33 +834,36 @@ impl EventSource for SerialSource {
         timeout: Duration,
         out: &mut dyn FnMut(Event),
     ) -> Result<SourceState, IoError> {
-        if self.ended {
-            return Ok(SourceState::Ended);
-        }
+        let Some(port) = self.port.as_mut() else {
+            return Ok(self.poll_lost(timeout));
+        };
         if timeout != self.timeout {
-            self.port
-                .set_timeout(timeout)
+            port.set_timeout(timeout)
                 .map_err(|e| IoError::Unsupported {
                     device: self.device.clone(),
                     reason: format!("cannot set a read timeout of {timeout:?}: {e}"),
                 })?;
             self.timeout = timeout;
         }
-        let Some(n) = self.read_some()? else {
+        let Some(n) = self.read_some() else {
             return Ok(self.state());
         };
         self.feed(n, out);
         // Bytes that arrived while the first read was handled are taken now rather than a
         // poll later, bounded so that a fast sender cannot keep the poll from returning.
         for _ in 0..MAX_DRAIN_READS {
-            let waiting = self.port.bytes_to_read().map_err(|e| IoError::Io {
-                device: self.device.clone(),
-                source: e.into(),
-            })?;
-            if waiting == 0 {
+            let Some(port) = self.port.as_ref() else {
                 break;
+            };
+            match port.bytes_to_read() {
+                Ok(0) => break,
+                Ok(_) => {}
+                Err(e) => {
+                    self.lose(e.to_string());
+                    break;
+                }
             }
-            let Some(n) = self.read_some()? else { break };
+            let Some(n) = self.read_some() else { break };
             self.feed(n, out);
         }
         Ok(self.state())
@@ -785,18 +875,72 @@ impl EventSource for SerialSource {
             events: self.events,
             rejected: d.rejected + self.mismatched,
             skipped_bytes: d.skipped_bytes,
+            disconnects: self.disconnects,
+            reconnects: self.reconnects,
         }
+    }
+
+    fn link_event(&mut self) -> Option<LinkEvent> {
+        self.link_events.pop_front()
     }
 }
 
 impl SerialSource {
     fn state(&self) -> SourceState {
-        if self.ended {
-            SourceState::Ended
-        } else {
+        if self.port.is_some() {
             SourceState::Open
+        } else {
+            SourceState::Disconnected
         }
     }
+}
+
+/// Opens `path` at `baud`, 8N1, no flow control, with a read timeout.
+///
+/// # Errors
+/// [`IoError::Open`] if it cannot be opened or configured.
+pub(crate) fn open_port(
+    path: &str,
+    baud: u32,
+    timeout: Duration,
+) -> Result<Box<dyn SerialPort>, IoError> {
+    serialport::new(path, baud)
+        .data_bits(serialport::DataBits::Eight)
+        .parity(serialport::Parity::None)
+        .stop_bits(serialport::StopBits::One)
+        .flow_control(serialport::FlowControl::None)
+        .timeout(timeout)
+        .open()
+        .map_err(|e| IoError::Open {
+            device: path.to_owned(),
+            reason: e.to_string(),
+        })
+}
+
+/// A read that found nothing (yet): not a failure of the port.
+pub(crate) fn is_quiet(e: &io::Error) -> bool {
+    matches!(
+        e.kind(),
+        io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted
+    )
+}
+
+/// A lost port's error, for the message.
+pub(crate) fn describe(e: &io::Error) -> String {
+    if e.kind() == io::ErrorKind::BrokenPipe {
+        format!("the port hung up ({e})")
+    } else {
+        e.to_string()
+    }
+}
+
+/// Link events waiting for the caller, the oldest dropped past a few (a caller that never
+/// asks must not make a flapping link grow memory).
+pub(crate) fn push_event(queue: &mut VecDeque<LinkEvent>, event: LinkEvent) {
+    if queue.len() >= 16 {
+        queue.pop_front();
+    }
+    queue.push_back(event);
 }
 
 /// The firmware's side of the protocol, in Rust: numbers frames and writes them to any
