@@ -57,7 +57,6 @@
 //! error part-way leaves the previous file as it was.
 
 use std::fmt;
-use std::fs;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -245,7 +244,7 @@ impl Library {
     /// [`Library::from_json`] (with the path as origin).
     pub fn load(path: impl AsRef<Path>) -> Result<Self, LibraryError> {
         let path = path.as_ref();
-        let text = fs::read_to_string(path).map_err(|source| LibraryError::Io {
+        let text = crate::limits::read_to_string_capped(path, crate::limits::MAX_LIBRARY_BYTES).map_err(|source| LibraryError::Io {
             path: path.to_path_buf(),
             action: "reading",
             source,
@@ -262,7 +261,7 @@ impl Library {
     /// As [`Library::load`], except for a missing file.
     pub fn load_or_new(path: impl AsRef<Path>) -> Result<Self, LibraryError> {
         let path = path.as_ref();
-        match fs::read_to_string(path) {
+        match crate::limits::read_to_string_capped(path, crate::limits::MAX_LIBRARY_BYTES) {
             Ok(text) => Self::from_json(&text, &path.display().to_string()),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(Self::new()),
             Err(source) => Err(LibraryError::Io {
@@ -652,6 +651,7 @@ fn strip_position(message: &str) -> String {
 mod tests {
     use super::*;
     use crate::material::{FilterCoefficients, FitRecord, SourceFile};
+    use std::fs;
     use crate::signal::{Biquad, Sos};
     use crate::units::{Band, SampleRate};
 
