@@ -28,8 +28,9 @@ pub const MAX_RECORDING_BYTES: u64 = 256 << 20;
 /// Decoded samples are `f64`, so this caps a recording at 660 MiB in memory.
 pub const MAX_RECORDING_FRAMES: usize = 30 * 60 * 48_000;
 
-/// Largest force-track file read: 256 MiB (about 5 hours of a 4-sensor track at 500 Hz).
-pub const MAX_TRACK_BYTES: u64 = 256 << 20;
+/// Largest force-track file read: 64 MiB (over an hour of a 4-sensor track at 500 Hz).
+/// A track is held in memory whole, at about three times its size in text.
+pub const MAX_TRACK_BYTES: u64 = 64 << 20;
 
 /// Largest gap between two consecutive rows of a force track. A longer silence of the
 /// sensors is a logger restart or a typo, and an offline render of it would be mostly
@@ -54,7 +55,10 @@ pub fn read_capped(path: &Path, cap: u64) -> std::io::Result<Vec<u8>> {
     let too_large = || {
         std::io::Error::new(
             std::io::ErrorKind::FileTooLarge,
-            format!("larger than the limit of {} MiB for this kind of file", cap >> 20),
+            format!(
+                "larger than the limit of {} MiB for this kind of file",
+                cap >> 20
+            ),
         )
     };
     let declared = file.metadata().map(|m| m.is_file().then_some(m.len()))?;

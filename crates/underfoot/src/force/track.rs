@@ -273,11 +273,12 @@ impl ForceTrack {
     /// [`MAX_TRACK_BYTES`] (a device or pipe included), otherwise the
     /// first fault found, naming the file and line.
     pub fn read(path: &Path) -> Result<Self, TrackError> {
-        let text = read_to_string_capped(path, MAX_TRACK_BYTES).map_err(|source| TrackError::Io {
-            path: path.to_path_buf(),
-            action: "reading",
-            source,
-        })?;
+        let text =
+            read_to_string_capped(path, MAX_TRACK_BYTES).map_err(|source| TrackError::Io {
+                path: path.to_path_buf(),
+                action: "reading",
+                source,
+            })?;
         Self::from_csv_str(&text, &path.display().to_string())
     }
 
@@ -879,11 +880,9 @@ mod tests {
         ));
         // Exactly the bound is fine; a logger's clock is fine.
         ForceTrack::from_csv_str(&format!("{head}10.002,1,2\n"), "t").unwrap();
-        let logger = ForceTrack::from_csv_str(
-            "time_s,force\n1700000000,1\n1700000000.002,2\n",
-            "logger",
-        )
-        .unwrap();
+        let logger =
+            ForceTrack::from_csv_str("time_s,force\n1700000000,1\n1700000000.002,2\n", "logger")
+                .unwrap();
         assert!((logger.duration().0 - 0.002).abs() < 1e-6);
         let mut far = feet();
         far.rows[2].time = Seconds(1e300);

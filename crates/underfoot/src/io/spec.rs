@@ -234,7 +234,10 @@ impl FromStr for OutputSpec {
 pub fn parse_band(s: &str) -> Result<Band, SpecError> {
     const WHAT: &str = "band";
     let bad = || invalid(WHAT, s, "expected LO:HI in Hz, e.g. 20:900");
-    let (lo, hi) = s.split_once(':').or_else(|| s.split_once(',')).ok_or_else(bad)?;
+    let (lo, hi) = s
+        .split_once(':')
+        .or_else(|| s.split_once(','))
+        .ok_or_else(bad)?;
     let lo: f64 = lo.trim().parse().map_err(|_| bad())?;
     let hi: f64 = hi.trim().parse().map_err(|_| bad())?;
     let edges = (MIN_BAND_EDGE..=MAX_BAND_EDGE).contains(&lo)
@@ -263,7 +266,11 @@ impl FromStr for Band {
 pub fn parse_seconds(s: &str, what: &'static str, lo: f64, hi: f64) -> Result<Seconds, SpecError> {
     match s.trim().parse::<f64>() {
         Ok(v) if (lo..=hi).contains(&v) => Ok(Seconds(v)),
-        _ => Err(invalid(what, s, format!("expected seconds from {lo} to {hi}"))),
+        _ => Err(invalid(
+            what,
+            s,
+            format!("expected seconds from {lo} to {hi}"),
+        )),
     }
 }
 
@@ -436,7 +443,11 @@ mod tests {
 
     /// An error names the text it refused (or the part of it at fault, cut at 200 bytes).
     fn check_error(e: &SpecError, input: &str) {
-        let SpecError::Invalid { input: named, reason, .. } = e;
+        let SpecError::Invalid {
+            input: named,
+            reason,
+            ..
+        } = e;
         let named = named.strip_suffix('…').unwrap_or(named);
         assert!(input.contains(named), "{named:?} is not from {input:?}");
         assert!(!reason.is_empty());

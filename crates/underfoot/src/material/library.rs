@@ -244,11 +244,12 @@ impl Library {
     /// [`Library::from_json`] (with the path as origin).
     pub fn load(path: impl AsRef<Path>) -> Result<Self, LibraryError> {
         let path = path.as_ref();
-        let text = crate::limits::read_to_string_capped(path, crate::limits::MAX_LIBRARY_BYTES).map_err(|source| LibraryError::Io {
-            path: path.to_path_buf(),
-            action: "reading",
-            source,
-        })?;
+        let text = crate::limits::read_to_string_capped(path, crate::limits::MAX_LIBRARY_BYTES)
+            .map_err(|source| LibraryError::Io {
+                path: path.to_path_buf(),
+                action: "reading",
+                source,
+            })?;
         Self::from_json(&text, &path.display().to_string())
     }
 
@@ -651,9 +652,9 @@ fn strip_position(message: &str) -> String {
 mod tests {
     use super::*;
     use crate::material::{FilterCoefficients, FitRecord, SourceFile};
-    use std::fs;
     use crate::signal::{Biquad, Sos};
     use crate::units::{Band, SampleRate};
+    use std::fs;
 
     /// A valid model: one resonant section whose fit record is its own response.
     fn model(name: &str) -> MaterialModel {

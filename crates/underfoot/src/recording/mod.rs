@@ -42,8 +42,8 @@ pub mod strikes;
 
 pub use error::RecordingError;
 
-pub use crate::limits::{MAX_RECORDING_BYTES, MAX_RECORDING_FRAMES};
 use crate::limits::read_capped;
+pub use crate::limits::{MAX_RECORDING_BYTES, MAX_RECORDING_FRAMES};
 use crate::units::{SampleRate, Seconds};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
@@ -265,9 +265,14 @@ mod tests {
 
     #[test]
     fn a_header_promising_more_than_the_cap_is_refused_before_decoding() {
-        let body: Vec<u8> = (0..4800u32).flat_map(|i| ((i % 200) as i16).to_le_bytes()).collect();
+        let body: Vec<u8> = (0..4800u32)
+            .flat_map(|i| ((i % 200) as i16).to_le_bytes())
+            .collect();
         let fine = wav_claiming(body.len() as u32, &body);
-        assert_eq!(read_bytes("ok.wav", &fine, None).unwrap().samples.len(), 4800);
+        assert_eq!(
+            read_bytes("ok.wav", &fine, None).unwrap().samples.len(),
+            4800
+        );
         let e = read_bytes("huge.wav", &wav_claiming(u32::MAX - 64, &body), None).unwrap_err();
         assert!(matches!(e, RecordingError::TooLong { .. }), "{e:?}");
         assert!(e.to_string().contains("huge.wav"), "{e}");
