@@ -218,6 +218,11 @@ impl MeasuredResponse {
     }
 }
 
+/// The lowest analysis rate.
+pub const MIN_ANALYSIS_RATE: u32 = 100;
+/// The highest analysis rate: 192 kHz, the highest rate a recording is expected at.
+pub const MAX_ANALYSIS_RATE: u32 = 192_000;
+
 impl AnalysisConfig {
     fn validate(&self) -> Result<(), AnalysisError> {
         let bad = |m: String| Err(AnalysisError::InvalidConfig(m));
@@ -253,8 +258,13 @@ impl AnalysisConfig {
                 self.bandpass_order
             ));
         }
-        if self.rate.0 < 100 {
-            return bad(format!("analysis rate {} is below 100 Hz", self.rate));
+        if !(MIN_ANALYSIS_RATE..=MAX_ANALYSIS_RATE).contains(&self.rate.0) {
+            // Above the cap a resampled recording would be a multi-gigabyte allocation
+            // (`--rate 4000000000` was a 34 GB one).
+            return bad(format!(
+                "analysis rate {} must be {MIN_ANALYSIS_RATE} to {MAX_ANALYSIS_RATE} Hz",
+                self.rate
+            ));
         }
         Ok(())
     }
@@ -380,14 +390,21 @@ fn extend(
     let fir = smoother.as_ref().map_or(0, SavitzkyGolay::window) + resampler.reach() + 1;
     let (up, down) = (up as usize, down as usize);
     let pad_in = fir.div_ceil(down) * down;
-    let mut input = vec![0.0; pad_in];
+    let mut input = Vec::with_capacity(2 * pad_in + rec.samples.len());
+    input.resize(pad_in, 0.0);
     input.extend_from_slice(&rec.samples);
     input.resize(input.len() + pad_in, 0.0);
+    // `input` is consumed here so that no more than two copies of the recording at its
+    // own rate are alive at once (the recording's and this one).
     let smoothed = match (&smoother, chain) {
-        (Some(sg), Chain::Conditioned) => sg.apply(&input).map_err(wrap)?,
+        (Some(sg), Chain::Conditioned) => {
+            let input = input;
+            sg.apply(&input).map_err(wrap)?
+        }
         _ => input,
     };
     let resampled = resampler.process(&smoothed);
+    drop(smoothed);
 
     // At the analysis rate, what the FIR steps leave is exactly zero, so the rest of the
     // silence is added there, where it is cheap: long enough for the trend filter's

@@ -151,6 +151,8 @@ pub mod interface;
 #[cfg(feature = "std")]
 pub mod io;
 #[cfg(feature = "std")]
+pub mod limits;
+#[cfg(feature = "std")]
 pub mod material;
 #[cfg(feature = "std")]
 pub mod physical;

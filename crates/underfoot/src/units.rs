@@ -33,10 +33,31 @@ impl SampleRate {
         Seconds(n as f64 / self.hz())
     }
 
-    /// The number of whole samples in `t` (rounded to nearest).
+    /// The number of whole samples in `t` (rounded to nearest), saturating: a negative or
+    /// NaN duration gives 0 and one too long for `usize` gives `usize::MAX`.
+    ///
+    /// Saturation keeps the conversion from wrapping, but a saturated count is still no
+    /// size to allocate: where `t` comes from outside, use [`SampleRate::checked_samples_in`].
     #[must_use]
     pub fn samples_in(self, t: Seconds) -> usize {
-        crate::math::round(t.0 * self.hz()).max(0.0) as usize
+        let n = crate::math::round(t.0 * self.hz());
+        if n >= 0.0 {
+            // `as` saturates at usize::MAX (and a NaN fails the test above).
+            n as usize
+        } else {
+            0
+        }
+    }
+
+    /// The number of whole samples in `t`, if `t` is finite, not negative and at most
+    /// `max` samples long; `None` otherwise. For durations that size a buffer.
+    #[must_use]
+    pub fn checked_samples_in(self, t: Seconds, max: usize) -> Option<usize> {
+        if !(t.0.is_finite() && t.0 >= 0.0) {
+            return None;
+        }
+        let n = crate::math::round(t.0 * self.hz());
+        (n <= max as f64).then_some(n as usize)
     }
 
     /// Normalised angular frequency `omega = 2 pi f / fs` in radians per sample.
@@ -132,6 +153,11 @@ pub struct Band {
 }
 
 impl Band {
+    /// The lowest lower edge a band may have: 0.1 Hz. Below it a log-frequency grid spans
+    /// so many decades that a fit's least-squares matrices lose every digit (a band from
+    /// 1e-200 Hz filled them with non-finite values).
+    pub const MIN_EDGE: f64 = 0.1;
+
     /// A band from its edges in hertz. Validity is checked by [`Band::fits`].
     #[must_use]
     pub const fn new(lo: f64, hi: f64) -> Self {
@@ -141,12 +167,13 @@ impl Band {
         }
     }
 
-    /// Whether the band is non-empty, positive and below the Nyquist frequency of `rate`.
+    /// Whether the band is non-empty, from at least [`Band::MIN_EDGE`] and below the
+    /// Nyquist frequency of `rate`.
     #[must_use]
     pub fn fits(self, rate: SampleRate) -> bool {
         self.lo.0.is_finite()
             && self.hi.0.is_finite()
-            && self.lo.0 > 0.0
+            && self.lo.0 >= Self::MIN_EDGE
             && self.hi.0 > self.lo.0
             && self.hi.0 < rate.nyquist().0
     }
@@ -205,6 +232,23 @@ mod tests {
         assert!(!Band::new(20.0, 1000.0).fits(SampleRate(2000)));
         assert!(!Band::new(900.0, 20.0).fits(SampleRate(2000)));
         assert!(!Band::new(0.0, 20.0).fits(SampleRate(2000)));
+        assert!(!Band::new(1e-200, 900.0).fits(SampleRate(2000)));
+        assert!(Band::new(0.1, 900.0).fits(SampleRate(2000)));
+    }
+
+    #[test]
+    fn sample_counts_saturate_or_fail_instead_of_overflowing() {
+        let r = SampleRate(48_000);
+        assert_eq!(r.samples_in(Seconds(1.0)), 48_000);
+        assert_eq!(r.samples_in(Seconds(-1.0)), 0);
+        assert_eq!(r.samples_in(Seconds(f64::NAN)), 0);
+        assert_eq!(r.samples_in(Seconds(1e300)), usize::MAX);
+        assert_eq!(r.samples_in(Seconds(f64::INFINITY)), usize::MAX);
+        assert_eq!(r.checked_samples_in(Seconds(1.0), 48_000), Some(48_000));
+        assert_eq!(r.checked_samples_in(Seconds(1.0), 47_999), None);
+        for t in [1e300, f64::INFINITY, f64::NAN, -1.0, 1.7e9] {
+            assert_eq!(r.checked_samples_in(Seconds(t), 1 << 30), None, "{t}");
+        }
     }
 
     #[test]

@@ -13,10 +13,11 @@ use underfoot::compensation::limb::{
     DEFAULT_G2, LimbFitConfig, LimbModel, LimbParams, SimulatedUser, fit_limb,
 };
 use underfoot::compensation::sweep::{
-    Device, FrequencyResponse, MeasuredDevice, SimulatedTile, Sweep, SweepConfig, TileConfig,
-    measure,
+    Device, FrequencyResponse, MAX_SWEEP_DURATION, MAX_SWEEP_REPEATS, MeasuredDevice,
+    SimulatedTile, Sweep, SweepConfig, TileConfig, measure,
 };
 use underfoot::force::calibration::{CurveKind, CurveModel, SensorCalibration, read_session};
+use underfoot::io::spec::{self, SpecError};
 use underfoot::units::{Band, Decibels, Hz, SampleRate, Seconds};
 
 use crate::output::emit;
@@ -102,12 +103,28 @@ pub struct AudioDeviceArgs {
     pub buffer: Option<u32>,
 }
 
-fn parse_band(s: &str) -> Result<Band, String> {
-    let (lo, hi) = s
-        .split_once(',')
-        .ok_or_else(|| format!("{s:?}: expected LO,HI in Hz"))?;
-    let parse = |v: &str| v.trim().parse::<f64>().map_err(|e| format!("{v:?}: {e}"));
-    Ok(Band::new(parse(lo)?, parse(hi)?))
+fn parse_band(s: &str) -> Result<Band, SpecError> {
+    spec::parse_band(s)
+}
+
+fn parse_sweep_rate(s: &str) -> Result<u32, SpecError> {
+    spec::parse_rate(s, "rate", 8_000, 384_000).map(|r| r.0)
+}
+
+fn parse_repeats(s: &str) -> Result<usize, SpecError> {
+    spec::parse_count(s, "repeats", 1, MAX_SWEEP_REPEATS)
+}
+
+fn parse_sweep_duration(s: &str) -> Result<f64, SpecError> {
+    spec::parse_seconds(s, "sweep duration", 0.01, MAX_SWEEP_DURATION.0).map(|t| t.0)
+}
+
+fn parse_passes(s: &str) -> Result<usize, SpecError> {
+    spec::parse_count(s, "passes", 1, 50)
+}
+
+fn parse_taps(s: &str) -> Result<usize, SpecError> {
+    spec::parse_count(s, "taps", 1, 1 << 16)
 }
 
 /// The sweep settings shared by `sweep` and `equalize`.
@@ -117,13 +134,13 @@ pub struct SweepSettings {
     #[arg(long, default_value = "40,1024", value_name = "LO,HI", value_parser = parse_band)]
     pub band: Band,
     /// Sample rate.
-    #[arg(long, default_value_t = 48_000, value_name = "HZ")]
+    #[arg(long, default_value_t = 48_000, value_name = "HZ", value_parser = parse_sweep_rate)]
     pub rate: u32,
-    /// Sweeps averaged per measurement.
-    #[arg(long, default_value_t = 3, value_name = "N")]
+    /// Sweeps averaged per measurement (1 to 100).
+    #[arg(long, default_value_t = 3, value_name = "N", value_parser = parse_repeats)]
     pub repeats: usize,
-    /// Duration of one sweep, in seconds.
-    #[arg(long, default_value_t = 2.0, value_name = "S")]
+    /// Duration of one sweep, in seconds (at most 60).
+    #[arg(long, default_value_t = 2.0, value_name = "S", value_parser = parse_sweep_duration)]
     pub duration: f64,
     /// Simulated device only: accelerometer noise relative to the signal, in dB.
     #[arg(long = "noise-db", default_value_t = -40.0, value_name = "DB", allow_hyphen_values = true)]
@@ -304,17 +321,17 @@ pub struct EqualizeArgs {
     #[arg(long, value_name = "DEVICE", value_parser = parse_device)]
     pub device: DeviceArg,
     /// Sweeps (passes); the first is through flat weights.
-    #[arg(long, default_value_t = 3, value_name = "N")]
+    #[arg(long, default_value_t = 3, value_name = "N", value_parser = parse_passes)]
     pub passes: usize,
     /// How the weights are applied: low-delay (a minimum-phase filter, no bulk delay) or
     /// bank (the uniform filter bank, N - 1 samples of delay).
     #[arg(long, default_value = "low-delay", value_name = "KIND")]
     pub realisation: String,
     /// Low-delay only: filter length in taps.
-    #[arg(long, default_value_t = 2048, value_name = "N")]
+    #[arg(long, default_value_t = 2048, value_name = "N", value_parser = parse_taps)]
     pub taps: usize,
     /// Size N of the uniform bank that carries the weights (bins fs/N apart).
-    #[arg(long, default_value_t = 4096, value_name = "N")]
+    #[arg(long, default_value_t = 4096, value_name = "N", value_parser = parse_taps)]
     pub bins: usize,
     /// Largest boost of any frequency, in dB.
     #[arg(long = "max-boost-db", default_value_t = 12.0, value_name = "DB")]

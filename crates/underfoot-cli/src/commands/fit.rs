@@ -18,8 +18,10 @@ use anyhow::{Context, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use underfoot::analysis::SavgolSetting;
+use underfoot::analysis::{MAX_ANALYSIS_RATE, MIN_ANALYSIS_RATE};
 use underfoot::atomic_file::write_atomic;
-use underfoot::fit::OrderChoice;
+use underfoot::fit::{MAX_ORDER, OrderChoice};
+use underfoot::io::spec::{self, SpecError};
 use underfoot::material::Library;
 use underfoot::material::build::{BuildConfig, BuildError, Progress, build_material};
 use underfoot::material::library::validate_name;
@@ -52,7 +54,7 @@ pub struct FitArgs {
     #[arg(long, value_name = "P.svg|P.png")]
     plot: Option<PathBuf>,
     /// Analysis sample rate in Hz [default: 2000].
-    #[arg(long, value_name = "HZ", value_parser = parse_rate)]
+    #[arg(long, value_name = "HZ", value_parser = parse_analysis_rate)]
     rate: Option<SampleRate>,
     /// Band of interest in Hz [default: 20:900].
     #[arg(long, value_name = "LO:HI", value_parser = parse_band)]
@@ -83,32 +85,29 @@ pub struct FitArgs {
     #[arg(long, value_name = "C", requires = "csv_rate")]
     csv_column: Option<String>,
     /// For CSV recordings: the rate the data was logged at, in Hz.
-    #[arg(long, value_name = "HZ", value_parser = parse_rate, requires = "csv_column")]
+    #[arg(long, value_name = "HZ", value_parser = parse_csv_rate, requires = "csv_column")]
     csv_rate: Option<SampleRate>,
     /// Recordings of heel strikes on the material (WAV, FLAC, Ogg Vorbis, CSV).
     #[arg(required = true, value_name = "FILES")]
     files: Vec<PathBuf>,
 }
 
-fn parse_rate(s: &str) -> Result<SampleRate, String> {
-    match s.trim().parse::<u32>() {
-        Ok(r) if r > 0 => Ok(SampleRate(r)),
-        _ => Err(format!(
-            "{s:?} is not a sample rate: expected a whole number of Hz above 0"
-        )),
-    }
+fn parse_analysis_rate(s: &str) -> Result<SampleRate, SpecError> {
+    spec::parse_rate(s, "analysis rate", MIN_ANALYSIS_RATE, MAX_ANALYSIS_RATE)
 }
 
-fn parse_band(s: &str) -> Result<Band, String> {
-    let bad = || format!("{s:?} is not a band: expected LO:HI in Hz, e.g. 20:900");
-    let (lo, hi) = s.split_once(':').ok_or_else(bad)?;
-    let lo: f64 = lo.trim().parse().map_err(|_| bad())?;
-    let hi: f64 = hi.trim().parse().map_err(|_| bad())?;
-    if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
-        return Err(format!("band {s:?}: need 0 < LO < HI"));
-    }
-    Ok(Band::new(lo, hi))
+fn parse_csv_rate(s: &str) -> Result<SampleRate, SpecError> {
+    spec::parse_rate(s, "CSV rate", 1, 1_000_000)
 }
+
+fn parse_band(s: &str) -> Result<Band, SpecError> {
+    spec::parse_band(s)
+}
+
+/// The widest Savitzky-Golay window and highest polynomial order accepted: far beyond any
+/// use, small enough that the smoother's design stays cheap.
+const MAX_SAVGOL_WINDOW: usize = 4097;
+const MAX_SAVGOL_ORDER: usize = 12;
 
 fn parse_savgol(s: &str) -> Result<SavgolSetting, String> {
     match s.trim() {
@@ -120,6 +119,12 @@ fn parse_savgol(s: &str) -> Result<SavgolSetting, String> {
     let (w, p) = s.split_once(':').ok_or_else(bad)?;
     let window: usize = w.trim().parse().map_err(|_| bad())?;
     let polyorder: usize = p.trim().parse().map_err(|_| bad())?;
+    if window > MAX_SAVGOL_WINDOW || polyorder > MAX_SAVGOL_ORDER {
+        return Err(format!(
+            "savgol {s:?}: the window may be at most {MAX_SAVGOL_WINDOW} and the order at \
+             most {MAX_SAVGOL_ORDER}"
+        ));
+    }
     if window % 2 == 0 || polyorder >= window {
         return Err(format!(
             "savgol {s:?}: the window must be odd and larger than the polynomial order"
@@ -137,13 +142,8 @@ fn parse_decay(s: &str) -> Result<f64, String> {
     }
 }
 
-fn parse_order(s: &str) -> Result<usize, String> {
-    match s.trim().parse::<usize>() {
-        Ok(n) if n > 0 => Ok(n),
-        _ => Err(format!(
-            "{s:?} is not a filter order: expected a whole number above 0"
-        )),
-    }
+fn parse_order(s: &str) -> Result<usize, SpecError> {
+    spec::parse_count(s, "filter order", 1, MAX_ORDER)
 }
 
 fn parse_positive(s: &str) -> Result<f64, String> {
@@ -425,10 +425,14 @@ mod tests {
         assert!(parse_band("900:20").is_err());
         assert!(parse_band("20-900").is_err());
         assert!(parse_band("0:10").is_err());
-        assert_eq!(parse_rate("2000"), Ok(SampleRate(2000)));
-        assert!(parse_rate("0").is_err() && parse_rate("2k").is_err());
+        assert!(parse_band("1e-200:900").is_err());
+        assert_eq!(parse_analysis_rate("2000"), Ok(SampleRate(2000)));
+        assert!(parse_analysis_rate("0").is_err() && parse_analysis_rate("2k").is_err());
+        assert!(parse_analysis_rate("4000000000").is_err());
+        assert_eq!(parse_csv_rate("50"), Ok(SampleRate(50)));
         assert_eq!(parse_order("8"), Ok(8));
-        assert!(parse_order("0").is_err());
+        assert!(parse_order("0").is_err() && parse_order("65").is_err());
+        assert!(parse_savgol("100001:3").is_err() && parse_savgol("17:13").is_err());
         assert!(parse_positive("nan").is_err() && parse_positive("-1").is_err());
         assert_eq!(
             parse_savgol("17:3"),

@@ -13,6 +13,7 @@ use underfoot::engine::{Event, TimedEvent};
 use underfoot::force::condition::ForceConditioner;
 use underfoot::force::gait::{self, GaitConfig};
 use underfoot::force::track::ForceTrack;
+use underfoot::io::spec::{self, SpecError};
 use underfoot::io::wav::{WavFormat, WavSink};
 use underfoot::units::{Decibels, Hz, Seconds};
 
@@ -51,10 +52,10 @@ pub struct RenderArgs {
     #[arg(long, default_value = "f32", value_parser = parse_format)]
     format: WavFormat,
     /// Silence rendered after the last force reading (lets the last step ring out).
-    #[arg(long, default_value_t = 1.0, value_name = "SECONDS")]
+    #[arg(long, default_value_t = 1.0, value_name = "SECONDS", value_parser = parse_tail)]
     tail: f64,
-    /// Frames per engine call (the output does not depend on it).
-    #[arg(long, default_value_t = 256, value_name = "N")]
+    /// Frames per engine call, 1 to 65536 (the output does not depend on it).
+    #[arg(long, default_value_t = 256, value_name = "N", value_parser = parse_block)]
     block: usize,
     #[command(flatten)]
     synth: SynthArgs,
@@ -68,6 +69,19 @@ fn parse_format(s: &str) -> Result<WavFormat, String> {
         _ => Err(format!("unknown format {s:?}: expected f32, i16 or i24")),
     }
 }
+
+fn parse_tail(s: &str) -> Result<f64, SpecError> {
+    spec::parse_seconds(s, "tail", 0.0, 60.0).map(|t| t.0)
+}
+
+fn parse_block(s: &str) -> Result<usize, SpecError> {
+    spec::parse_count(s, "block", 1, 65_536)
+}
+
+/// The longest render: an hour of one channel (half an hour of two, ...). The whole
+/// render is held in memory, 700 MB for an hour at 48 kHz; a longer session is for
+/// `underfoot run --output wav:`.
+const MAX_RENDER: Seconds = Seconds(3600.0);
 
 /// Runs `underfoot render`.
 pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
@@ -93,8 +107,21 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let slots = setup.slots(&args.material, channels)?;
     let rate = setup.config.rate;
     let events = track_events(&track, rate);
-    let last = events.last().and_then(|e| e.at).unwrap_or(0) as usize;
-    let frames = last + rate.samples_in(Seconds(args.tail)) + 1;
+    // Frames count from the track's first reading (`track_events`).
+    let last = events.last().and_then(|e| e.at).unwrap_or(0);
+    let max_frames = rate.samples_in(MAX_RENDER) / channels.max(1);
+    let frames = usize::try_from(last)
+        .ok()
+        .and_then(|last| last.checked_add(rate.samples_in(Seconds(args.tail)) + 1))
+        .filter(|&n| n <= max_frames)
+        .ok_or_else(|| {
+            anyhow::anyhow!(
+                "the track lasts {:.0} s; a render of {channels} channel(s) is at most {:.0} s \
+                 (use `underfoot run --input replay:FILE --output wav:OUT` for longer sessions)",
+                track.duration().0,
+                MAX_RENDER.0 / channels.max(1) as f64
+            )
+        })?;
 
     let started = Instant::now();
     let out = render(

@@ -48,6 +48,7 @@ use underfoot::io::osc::OscSource;
 use underfoot::io::prosthetic::{self, ProstheticHost, SimulatorHandle};
 use underfoot::io::replay::ReplaySource;
 use underfoot::io::serial::{SerialConfig, SerialSource};
+use underfoot::io::spec::{self, InputSpec, OutputSpec, SpecError};
 use underfoot::io::wav::{WavFormat, WavSink};
 use underfoot::io::{Backoff, EventSource, LinkEvent, SourceState};
 use underfoot::units::{Decibels, SampleRate, Seconds};
@@ -63,7 +64,8 @@ pub struct RunArgs {
         long,
         value_name = "SOURCE",
         required_unless_present_any = ["interface", "list_devices"],
-        conflicts_with = "interface"
+        conflicts_with = "interface",
+        value_parser = validated_input
     )]
     input: Option<String>,
     /// A prosthetic-skin interface (prosthetic.toml): insole force in, servo targets out,
@@ -71,26 +73,32 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE.toml")]
     interface: Option<PathBuf>,
     /// Where vibration goes: audio[:DEVICE], wav:FILE.wav, or null.
-    #[arg(long, default_value = "audio", value_name = "SINK")]
+    #[arg(long, default_value = "audio", value_name = "SINK", value_parser = validated_output)]
     output: String,
     /// Material of each channel, comma-separated (default: the library's first).
     #[arg(long, value_name = "NAME[,NAME...]", value_delimiter = ',')]
     material: Vec<String>,
     /// Output channels (actuators); default: the track's channels, else 1.
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = parse_channels)]
     channels: Option<usize>,
-    /// Frames per device buffer (audio: requested; wav/null: the pacing period).
-    #[arg(long, value_name = "N")]
+    /// Frames per device buffer, 16 to 8192 (audio: requested; wav/null: the pacing
+    /// period).
+    #[arg(long, value_name = "N", value_parser = parse_buffer)]
     buffer: Option<u32>,
     /// Audio host: default, alsa or jack.
     #[arg(long, default_value = "default", value_name = "HOST")]
     host: String,
     /// Jitter margin of the sensor clock, in milliseconds: a timed reading (replay, gait)
     /// plays one buffer plus this after its sensor time.
-    #[arg(long = "sensor-latency", default_value_t = 10.0, value_name = "MS")]
+    #[arg(
+        long = "sensor-latency",
+        default_value_t = 10.0,
+        value_name = "MS",
+        value_parser = parse_sensor_latency
+    )]
     sensor_latency: f64,
-    /// Stop after this many seconds.
-    #[arg(long, visible_alias = "seconds", value_name = "SECONDS")]
+    /// Stop after this many seconds (at most 30 days).
+    #[arg(long, visible_alias = "seconds", value_name = "SECONDS", value_parser = parse_duration)]
     duration: Option<f64>,
     /// Serial line speed.
     #[arg(long, default_value_t = 115_200, value_name = "BAUD")]
@@ -119,6 +127,34 @@ pub struct RunArgs {
     list_devices: bool,
     #[command(flatten)]
     synth: SynthArgs,
+}
+
+/// An input spec checked by [`InputSpec::parse`] (kept as text: [`open_input`] opens it).
+fn validated_input(s: &str) -> Result<String, SpecError> {
+    InputSpec::parse(s).map(|_| s.to_owned())
+}
+
+/// An output spec checked by [`OutputSpec::parse`] (kept as text: [`Output::start`] opens it).
+fn validated_output(s: &str) -> Result<String, SpecError> {
+    OutputSpec::parse(s).map(|_| s.to_owned())
+}
+
+fn parse_duration(s: &str) -> Result<f64, SpecError> {
+    spec::parse_session_duration(s).map(|d| d.0)
+}
+
+fn parse_sensor_latency(s: &str) -> Result<f64, SpecError> {
+    // In milliseconds, like the flag.
+    spec::parse_seconds(s, "sensor latency (ms)", 0.0, 1000.0).map(|d| d.0)
+}
+
+fn parse_channels(s: &str) -> Result<usize, SpecError> {
+    spec::parse_count(s, "channels", 1, 64)
+}
+
+fn parse_buffer(s: &str) -> Result<u32, SpecError> {
+    // 8192 fits a u32.
+    spec::parse_count(s, "buffer", 16, 8192).map(|n| n as u32)
 }
 
 /// Runs `underfoot run`.
@@ -387,11 +423,7 @@ fn open_input(args: &RunArgs) -> anyhow::Result<(Input, Option<usize>, bool)> {
     Ok(match kind {
         "replay" => {
             let (file, speed) = match rest.rsplit_once('@') {
-                Some((f, s)) => (
-                    f,
-                    s.parse::<f64>()
-                        .with_context(|| format!("replay speed {s:?}"))?,
-                ),
+                Some((f, s)) => (f, spec::parse_speed(s)?),
                 None => (rest, 1.0),
             };
             let track = ForceTrack::read(&PathBuf::from(file))?;

@@ -44,7 +44,8 @@ fn file_error(path: &Path, reason: impl Into<String>) -> CompensationError {
 /// [`CompensationError::File`] for a missing or unreadable file, bad JSON, another kind
 /// of file, another version, or content that fails validation.
 pub fn load<T: Document>(path: &Path) -> Result<T, CompensationError> {
-    let text = std::fs::read_to_string(path).map_err(|e| file_error(path, e.to_string()))?;
+    let text = crate::limits::read_to_string_capped(path, crate::limits::MAX_DOCUMENT_BYTES)
+        .map_err(|e| file_error(path, e.to_string()))?;
     let value: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| file_error(path, format!("not JSON: {e}")))?;
     let kind = value.get("kind").and_then(serde_json::Value::as_str);

@@ -81,6 +81,11 @@ const EPS_IN: f64 = 1e-10;
 /// Regularisation outside the swept range, relative to the peak of `|X|^2`.
 const EPS_OUT: f64 = 1.0;
 
+/// The longest sweep: a minute (the default is 2 s).
+pub const MAX_SWEEP_DURATION: Seconds = Seconds(60.0);
+/// Most sweeps averaged per measurement.
+pub const MAX_SWEEP_REPEATS: usize = 100;
+
 /// Settings of a sweep measurement.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SweepConfig {
@@ -174,8 +179,9 @@ impl Sweep {
             ));
         }
         let t = cfg.duration.0;
-        if !(t.is_finite() && t > 0.0) {
-            return Err(invalid("duration", t, "finite, > 0 s"));
+        // Bounded so that the sweep's samples are a bounded allocation.
+        if !(t.is_finite() && t > 0.0 && t <= MAX_SWEEP_DURATION.0) {
+            return Err(invalid("duration", t, "finite, > 0 s and at most 60 s"));
         }
         if !(cfg.fade.0.is_finite() && cfg.fade.0 >= 0.0 && 2.0 * cfg.fade.0 < t) {
             return Err(invalid(
@@ -184,8 +190,8 @@ impl Sweep {
                 ">= 0 s, under half the duration",
             ));
         }
-        if cfg.repeats == 0 {
-            return Err(invalid("repeats", 0.0, ">= 1"));
+        if cfg.repeats == 0 || cfg.repeats > MAX_SWEEP_REPEATS {
+            return Err(invalid("repeats", cfg.repeats as f64, "1 to 100"));
         }
         if !(cfg.window.0.is_finite() && cfg.window.0 > 0.0) {
             return Err(invalid("window", cfg.window.0, "finite, > 0 s"));

@@ -10,14 +10,15 @@ use crate::force::track::ForceTrack;
 use crate::units::{SampleRate, Seconds};
 
 /// Events for a force track: each row's readings, stamped with the row's time as their
-/// sensor time, at frame `round((t - t_0) * fs)` with `t_0 = min(first row time, 0)`;
+/// sensor time, at frame `round((t - t_0) * fs)` with `t_0` the first row's time (times
+/// count from the first reading, so a track on a logger's clock renders from frame 0);
 /// channel `k` of the track to engine channel `k`.
 ///
 /// A live session of the same track (readings stamped alike, sent without a frame) plays
 /// the same output shifted by a constant ([`super::clock`]).
 #[must_use]
 pub fn track_events(track: &ForceTrack, rate: SampleRate) -> Vec<TimedEvent> {
-    let start = track.rows.first().map_or(0.0, |r| r.time.0.min(0.0));
+    let start = track.rows.first().map_or(0.0, |r| r.time.0);
     let mut events = Vec::with_capacity(track.rows.len() * track.channels.len());
     for row in &track.rows {
         let frame = ((row.time.0 - start) * rate.hz()).round().max(0.0) as u64;

@@ -132,7 +132,10 @@ pub(crate) fn solve_scaled(
             m.column_mut(j).scale_mut(*s);
         }
     }
-    let svd = m.svd(true, true);
+    if rhs.iter().any(|v| !v.is_finite()) {
+        return Err(FitError::Numerical("a least-squares target is not finite"));
+    }
+    let svd = super::svd(m).map_err(FitError::Numerical)?;
     let tol = svd.singular_values.max() * 1e-13;
     let mut x = svd.solve(rhs, tol).map_err(FitError::Numerical)?;
     for (xi, s) in x.iter_mut().zip(&scale) {

@@ -247,7 +247,10 @@ pub fn levinson_durbin(r: &[f64], order: usize) -> Result<Predictor, LpcError> {
 /// Least squares `min |m x - rhs|` by SVD, dropping singular values below
 /// [`SVD_TOLERANCE`] of the largest.
 fn least_squares(m: DMatrix<f64>, rhs: &DVector<f64>) -> Result<DVector<f64>, LpcError> {
-    let svd = m.svd(true, true);
+    if rhs.iter().any(|v| !v.is_finite()) {
+        return Err(LpcError::Numerical("a least-squares target is not finite"));
+    }
+    let svd = super::svd(m).map_err(LpcError::Numerical)?;
     let tol = svd.singular_values.max() * SVD_TOLERANCE;
     let x = svd.solve(rhs, tol).map_err(LpcError::Numerical)?;
     if x.iter().any(|v| !v.is_finite()) {
@@ -385,7 +388,7 @@ fn minimum_norm_poles(x: &[f64], order: usize) -> Result<Vec<Complex64>, LpcErro
     let rows = x.len() - len;
     let m = DMatrix::from_fn(rows, len, |i, k| x[i + k + 1]);
     let rhs = DVector::from_fn(rows, |i, _| -x[i]);
-    let svd = m.svd(true, true);
+    let svd = super::svd(m).map_err(LpcError::Numerical)?;
     let (Some(u), Some(v_t)) = (&svd.u, &svd.v_t) else {
         return Err(LpcError::Numerical("SVD without singular vectors"));
     };

@@ -45,6 +45,11 @@
 //! [`trf`] is a general bounded non-linear least-squares solver (trust-region-reflective),
 //! used where a fit has a few physical parameters with bounds, such as the limb model of
 //! [`crate::compensation::limb`].
+//!
+//! **Bounded iterations.** Every iterative routine here stops: the SVDs run through
+//! [`svd`], which refuses a matrix with a non-finite entry (nalgebra's SVD iterates forever
+//! on one) and caps the iterations; the eigenvalue solvers ([`roots`], [`vector_fit`]) cap
+//! theirs; the refinements and [`trf`] cap their steps.
 pub mod crumpling;
 pub mod levi;
 pub mod lpc;
@@ -61,6 +66,24 @@ pub use target::Target;
 
 use crate::signal::Sos;
 use crate::units::{Decibels, SampleRate, Seconds};
+
+/// Most sweeps of the SVD's implicit QR iteration per column: a well-posed matrix needs a
+/// few; a few hundred mean it will not converge.
+const SVD_SWEEPS_PER_COLUMN: usize = 300;
+
+/// The thin SVD of `m`, with its singular vectors, or why there is none: an entry that is
+/// not finite (on which nalgebra's iteration never ends), or no convergence within
+/// [`SVD_SWEEPS_PER_COLUMN`] sweeps per column.
+pub(crate) fn svd(
+    m: nalgebra::DMatrix<f64>,
+) -> Result<nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn>, &'static str> {
+    if m.iter().any(|v| !v.is_finite()) {
+        return Err("a least-squares matrix has a non-finite entry");
+    }
+    let max_iterations = SVD_SWEEPS_PER_COLUMN * (m.nrows().min(m.ncols()) + 1);
+    nalgebra::SVD::try_new(m, true, true, f64::EPSILON, max_iterations)
+        .ok_or("the SVD did not converge")
+}
 
 /// The largest pole radius of a filter at `rate` whose slowest mode decays by `e` in
 /// `longest`: `exp(-1 / (rate * longest))`. `1.0` (stability only) for a non-positive or
@@ -443,4 +466,23 @@ fn stabilise(sos: &Sos, max_radius: f64) -> Sos {
         })
         .collect();
     Sos::new(sections)
+}
+
+#[cfg(test)]
+mod svd_tests {
+    use super::svd;
+    use nalgebra::DMatrix;
+
+    #[test]
+    fn svd_refuses_non_finite_entries_instead_of_spinning() {
+        let start = std::time::Instant::now();
+        let m = || DMatrix::from_fn(40, 8, |i, k| ((i * 7 + k * 3) % 11) as f64);
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let mut with = m();
+            with[(17, 3)] = bad;
+            assert!(svd(with).is_err(), "{bad}");
+        }
+        assert_eq!(svd(m()).unwrap().singular_values.len(), 8);
+        assert!(start.elapsed() < std::time::Duration::from_secs(5));
+    }
 }

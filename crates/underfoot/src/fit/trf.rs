@@ -323,6 +323,9 @@ impl Model {
     }
 }
 
+/// Most trial steps from one point before the search gives up.
+const MAX_STEP_TRIES: usize = 2_000;
+
 /// `p(α)` for the SVD data: `−V (s/(s² + α)) uf`.
 fn tr_step(v: &DMatrix<f64>, s: &DVector<f64>, uf: &DVector<f64>, alpha: f64) -> DVector<f64> {
     let mut c = DVector::zeros(s.len());
@@ -335,7 +338,7 @@ fn tr_step(v: &DMatrix<f64>, s: &DVector<f64>, uf: &DVector<f64>, alpha: f64) ->
 
 /// The exact minimiser of `½‖A p + f‖²` over `‖p‖ <= Δ`, and whether the constraint is active.
 fn solve_trust_region(a: &DMatrix<f64>, f: &DVector<f64>, delta: f64) -> Option<DVector<f64>> {
-    let svd = a.clone().svd(true, true);
+    let svd = super::svd(a.clone()).ok()?;
     let u = svd.u?;
     let vt = svd.v_t?;
     let v = vt.transpose();
@@ -542,7 +545,16 @@ pub fn least_squares_bounded<P: LeastSquares + ?Sized>(
 
         let mut accepted = false;
         let mut stop = None;
+        let mut tries = 0usize;
         while !accepted {
+            // A failed try shrinks the radius fourfold, so ~500 reach the 1e-300 floor; a
+            // NaN ratio (leaving the radius alone) must not hold the loop forever.
+            tries += 1;
+            if tries > MAX_STEP_TRIES {
+                return Err(TrfError::Numerical(
+                    "no acceptable step within the iteration limit",
+                ));
+            }
             let ph = solve_trust_region(&aug, &faug, delta)
                 .ok_or(TrfError::Numerical("SVD of the Jacobian failed"))?;
             let (ph, predicted) = select_step(&bounds, &x, &d, &model, ph, delta, theta);

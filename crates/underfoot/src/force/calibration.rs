@@ -1074,11 +1074,12 @@ impl SensorCalibration {
     /// # Errors
     /// [`CalibrationError::Io`], or what [`SensorCalibration::from_json_str`] finds.
     pub fn load(path: &Path) -> Result<Self, CalibrationError> {
-        let text = std::fs::read_to_string(path).map_err(|source| CalibrationError::Io {
-            path: path.to_path_buf(),
-            action: "reading",
-            source,
-        })?;
+        let text = crate::limits::read_to_string_capped(path, crate::limits::MAX_DOCUMENT_BYTES)
+            .map_err(|source| CalibrationError::Io {
+                path: path.to_path_buf(),
+                action: "reading",
+                source,
+            })?;
         Self::from_json_str(&text, &path.display().to_string())
     }
 
@@ -1116,11 +1117,12 @@ struct FileOwned {
 /// # Errors
 /// [`CalibrationError::Io`], or the first fault found, naming the file and line.
 pub fn read_session(path: &Path) -> Result<Vec<SensorSamples>, CalibrationError> {
-    let text = std::fs::read_to_string(path).map_err(|source| CalibrationError::Io {
-        path: path.to_path_buf(),
-        action: "reading",
-        source,
-    })?;
+    let text = crate::limits::read_to_string_capped(path, crate::limits::MAX_DOCUMENT_BYTES)
+        .map_err(|source| CalibrationError::Io {
+            path: path.to_path_buf(),
+            action: "reading",
+            source,
+        })?;
     session_from_csv_str(&text, &path.display().to_string())
 }
 

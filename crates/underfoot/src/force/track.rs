@@ -14,7 +14,10 @@
 //! ```
 //!
 //! * The first column is `time_s`: seconds, finite and strictly increasing from row to
-//!   row. The first time need not be zero (a logger's clock is fine).
+//!   row, at most [`MAX_TRACK_GAP`] (10 s) apart. The first time need not be zero (a
+//!   logger's clock is fine): what plays a track (an offline render, a replay) counts its
+//!   times from the first row, so a track at `1700000000` plays as one at `0`.
+//! * The file is at most [`MAX_TRACK_BYTES`] long.
 //! * Every other column is one sensor, named `<channel>.<sensor>`: `left.heel`, or
 //!   `tile0.c0` for a tile's corners. Channels are numbered in order of first appearance;
 //!   a channel's sensors are contiguous columns, in reading order, at most
@@ -45,6 +48,7 @@ use std::path::{Path, PathBuf};
 
 use super::{MAX_SENSORS, SensorReading};
 use crate::atomic_file::{AtomicWriteError, write_atomic};
+use crate::limits::{MAX_TRACK_BYTES, MAX_TRACK_GAP, read_to_string_capped};
 use crate::units::Seconds;
 
 /// The name of the time column, always the first.
@@ -215,6 +219,26 @@ pub enum TrackError {
         /// The previous row's time in seconds.
         previous: f64,
     },
+    /// A row more than [`MAX_TRACK_GAP`] after the previous one (a logger restart, a
+    /// typo, or a time in the wrong unit).
+    #[error(
+        "{origin}: line {line}: time {t} s is {gap} s after the previous row's {p} s; rows \
+         may be at most {max} s apart (split the track at the gap)",
+        t = seconds(*time),
+        p = seconds(*previous),
+        gap = seconds(time - previous),
+        max = MAX_TRACK_GAP.0
+    )]
+    TimeGap {
+        /// Where the text came from.
+        origin: String,
+        /// The row's line.
+        line: u64,
+        /// The row's time in seconds.
+        time: f64,
+        /// The previous row's time in seconds.
+        previous: f64,
+    },
     /// A header but no rows.
     #[error("{origin}: a header but no rows")]
     NoRows {
@@ -245,14 +269,16 @@ impl ForceTrack {
     /// Reads and checks a force track file; see the [module docs](self) for the format.
     ///
     /// # Errors
-    /// [`TrackError::Io`] if the file cannot be read (or is not UTF-8), otherwise the
+    /// [`TrackError::Io`] if the file cannot be read, is not UTF-8 or is larger than
+    /// [`MAX_TRACK_BYTES`] (a device or pipe included), otherwise the
     /// first fault found, naming the file and line.
     pub fn read(path: &Path) -> Result<Self, TrackError> {
-        let text = std::fs::read_to_string(path).map_err(|source| TrackError::Io {
-            path: path.to_path_buf(),
-            action: "reading",
-            source,
-        })?;
+        let text =
+            read_to_string_capped(path, MAX_TRACK_BYTES).map_err(|source| TrackError::Io {
+                path: path.to_path_buf(),
+                action: "reading",
+                source,
+            })?;
         Self::from_csv_str(&text, &path.display().to_string())
     }
 
@@ -462,6 +488,16 @@ impl ForceTrack {
     }
 }
 
+/// A time for a message: as written when short, in exponent form when a value like 1e300
+/// would print three hundred digits.
+fn seconds(t: f64) -> String {
+    if t.abs() < 1e12 {
+        t.to_string()
+    } else {
+        format!("{t:e}")
+    }
+}
+
 fn inconsistent(origin: &str, reason: String) -> TrackError {
     TrackError::Inconsistent {
         origin: origin.to_owned(),
@@ -631,6 +667,14 @@ fn check_row(
     if let Some(previous) = previous {
         if time <= previous {
             return Err(TrackError::TimeOrder {
+                origin: origin.to_owned(),
+                line,
+                time,
+                previous,
+            });
+        }
+        if time - previous > MAX_TRACK_GAP.0 {
+            return Err(TrackError::TimeGap {
                 origin: origin.to_owned(),
                 line,
                 time,
@@ -818,6 +862,45 @@ mod tests {
         ));
         // Drifting sensors read slightly negative; that is not an error.
         ForceTrack::from_csv_str(&format!("{head}0.1,-0.4,2\n"), "drift").unwrap();
+    }
+
+    #[test]
+    fn a_gap_beyond_the_bound_is_refused_with_its_line() {
+        let head = "time_s,l.heel,l.toe\n0,1,2\n0.002,1,2\n";
+        // A last row at 1e300 s (issue 14): refused, not silently played as 1 s of nothing.
+        let e = error(&format!("{head}1e300,1,2\n"));
+        assert!(
+            matches!(e, TrackError::TimeGap { line: 4, previous, .. } if previous == 0.002),
+            "{e:?}"
+        );
+        assert!(e.to_string().contains("line 4"), "{e}");
+        assert!(matches!(
+            error(&format!("{head}10.1,1,2\n")),
+            TrackError::TimeGap { line: 4, .. }
+        ));
+        // Exactly the bound is fine; a logger's clock is fine.
+        ForceTrack::from_csv_str(&format!("{head}10.002,1,2\n"), "t").unwrap();
+        let logger =
+            ForceTrack::from_csv_str("time_s,force\n1700000000,1\n1700000000.002,2\n", "logger")
+                .unwrap();
+        assert!((logger.duration().0 - 0.002).abs() < 1e-6);
+        let mut far = feet();
+        far.rows[2].time = Seconds(1e300);
+        assert!(matches!(
+            far.validate("far"),
+            Err(TrackError::TimeGap { line: 4, .. })
+        ));
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn an_endless_device_is_refused_as_too_large() {
+        let e = ForceTrack::read(Path::new("/dev/zero")).unwrap_err();
+        assert!(
+            matches!(&e, TrackError::Io { source, .. }
+                if source.kind() == std::io::ErrorKind::FileTooLarge),
+            "{e:?}"
+        );
     }
 
     #[test]

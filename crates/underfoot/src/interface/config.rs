@@ -292,10 +292,11 @@ impl InterfaceConfig {
     /// # Errors
     /// [`ConfigError`] naming the file, key and line at fault.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text = crate::limits::read_to_string_capped(path, crate::limits::MAX_DOCUMENT_BYTES)
+            .map_err(|source| ConfigError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
         let base = path.parent().unwrap_or(Path::new("."));
         Self::parse(&text, path, |name| {
             SensorCalibration::load(&base.join(name))

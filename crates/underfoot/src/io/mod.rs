@@ -38,6 +38,7 @@ pub mod prosthetic;
 pub mod replay;
 #[cfg(feature = "serial")]
 pub mod serial;
+pub mod spec;
 #[cfg(feature = "wav")]
 pub mod wav;
 

@@ -2,7 +2,9 @@
 //! slower).
 //!
 //! The clock starts at the first [`poll`](EventSource::poll): row times count from there,
-//! divided by the speed. A poll sleeps until the next row is due or its timeout runs out,
+//! relative to the first row's time (a track on a logger's clock, starting at
+//! `1700000000`, plays at once), divided by the speed. Rows more than
+//! [`MAX_TRACK_GAP`] apart are refused, as by the track's reader. A poll sleeps until the next row is due or its timeout runs out,
 //! whichever is first, then hands over every row that is due, each as one [`Event::Force`]
 //! per channel in channel order. A poll that comes late hands over every row it missed, in
 //! order: rows are never dropped, so a replay always delivers the whole track.
@@ -21,6 +23,7 @@ use std::time::{Duration, Instant};
 use super::{EventSource, IoError, SourceState, SourceStats};
 use crate::engine::Event;
 use crate::force::track::ForceTrack;
+use crate::limits::MAX_TRACK_GAP;
 use crate::units::Seconds;
 
 /// A force track as an [`EventSource`].
@@ -29,6 +32,8 @@ pub struct ReplaySource {
     track: ForceTrack,
     /// When each row is due, from the start, at the replay speed.
     due: Vec<Duration>,
+    /// The first row's time: row times count from it.
+    first: f64,
     speed: f64,
     next: usize,
     start: Option<Instant>,
@@ -49,7 +54,8 @@ impl ReplaySource {
     ///
     /// # Errors
     /// [`IoError::Unsupported`] if `speed` is not positive and finite, if a row's time is
-    /// negative, not finite, earlier than the row before, or too far out to schedule, if a
+    /// not finite, earlier than the row before, more than [`MAX_TRACK_GAP`] after it, or
+    /// too far out to schedule, if a
     /// row has not one reading per channel, or if a reading is not finite.
     pub fn new(track: ForceTrack, speed: f64) -> Result<Self, IoError> {
         if !(speed.is_finite() && speed > 0.0) {
@@ -64,7 +70,8 @@ impl ReplaySource {
             )));
         }
         let mut due = Vec::with_capacity(track.rows.len());
-        let mut last = 0.0;
+        let first = track.rows.first().map_or(0.0, |r| r.time.0);
+        let mut last = first;
         for (i, row) in track.rows.iter().enumerate() {
             let t = row.time.0;
             if !(t.is_finite() && t >= last) {
@@ -72,7 +79,18 @@ impl ReplaySource {
                     "row {i}: time {t} s is not finite or goes back from {last} s"
                 )));
             }
+            if t - last > MAX_TRACK_GAP.0 {
+                return Err(unsupported(format!(
+                    "row {i}: time {t} s is {} s after the row before; rows may be at most \
+                     {} s apart",
+                    t - last,
+                    MAX_TRACK_GAP.0
+                )));
+            }
             last = t;
+            // From the first reading: a logger's clock would otherwise schedule the first
+            // row decades out.
+            let t = t - first;
             if row.readings.len() != track.channels.len() {
                 return Err(unsupported(format!(
                     "row {i}: {} readings for {} channels",
@@ -90,6 +108,7 @@ impl ReplaySource {
         Ok(Self {
             track,
             due,
+            first,
             speed,
             next: 0,
             start: None,
@@ -121,7 +140,7 @@ impl ReplaySource {
     fn emit_due(&mut self, elapsed: Duration, out: &mut dyn FnMut(Event)) {
         while self.next < self.due.len() && self.due[self.next] <= elapsed {
             let row = &self.track.rows[self.next];
-            let time = Seconds(row.time.0 / self.speed);
+            let time = Seconds((row.time.0 - self.first) / self.speed);
             for (channel, reading) in row.readings.iter().enumerate() {
                 // Channel counts above u16 were refused in `new`.
                 let Ok(channel) = u16::try_from(channel) else {
@@ -301,6 +320,28 @@ mod tests {
     }
 
     #[test]
+    fn a_track_on_a_loggers_clock_plays_from_its_first_row() {
+        // Issue 14: rows at 1700000000 s made a replay wait 54 years for its first row.
+        let mut t = track(31, 0.01);
+        for row in &mut t.rows {
+            row.time.0 += 1_700_000_000.0;
+        }
+        let mut source = ReplaySource::new(t, 1.0).unwrap();
+        assert!(source.duration() < Duration::from_millis(301));
+        let start = Instant::now();
+        let (events, took) = replay(&mut source);
+        assert!(took < Duration::from_millis(400), "{took:?}");
+        assert!(start.elapsed() < Duration::from_secs(1));
+        assert_eq!(events.len(), 62);
+        // Stamped from the first row too.
+        let Event::Force { reading, .. } = events[60].1 else {
+            panic!("a force event")
+        };
+        let time = reading.time().unwrap();
+        assert!((time.0 - 0.3).abs() < 1e-6, "{time:?}");
+    }
+
+    #[test]
     fn bad_tracks_and_speeds_are_refused() {
         for speed in [0.0, -1.0, f64::NAN, f64::INFINITY] {
             assert!(ReplaySource::new(track(3, 0.01), speed).is_err(), "{speed}");
@@ -310,9 +351,11 @@ mod tests {
         let mut nan_time = track(3, 0.01);
         nan_time.rows[1].time = Seconds(f64::NAN);
         let mut negative = track(3, 0.01);
-        negative.rows[0].time = Seconds(-1.0);
+        negative.rows[1].time = Seconds(-1.0);
         let mut far = track(3, 0.01);
         far.rows[2].time = Seconds(1e300);
+        let mut gap = track(3, 0.01);
+        gap.rows[2].time = Seconds(10.5);
         let mut short_row = track(3, 0.01);
         short_row.rows[1].readings.pop();
         let mut nan_force = track(3, 0.01);
@@ -322,6 +365,7 @@ mod tests {
             ("NaN time", nan_time),
             ("negative time", negative),
             ("too far", far),
+            ("a gap over 10 s", gap),
             ("short row", short_row),
             ("NaN force", nan_force),
         ] {

@@ -57,7 +57,6 @@
 //! error part-way leaves the previous file as it was.
 
 use std::fmt;
-use std::fs;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -245,11 +244,12 @@ impl Library {
     /// [`Library::from_json`] (with the path as origin).
     pub fn load(path: impl AsRef<Path>) -> Result<Self, LibraryError> {
         let path = path.as_ref();
-        let text = fs::read_to_string(path).map_err(|source| LibraryError::Io {
-            path: path.to_path_buf(),
-            action: "reading",
-            source,
-        })?;
+        let text = crate::limits::read_to_string_capped(path, crate::limits::MAX_LIBRARY_BYTES)
+            .map_err(|source| LibraryError::Io {
+                path: path.to_path_buf(),
+                action: "reading",
+                source,
+            })?;
         Self::from_json(&text, &path.display().to_string())
     }
 
@@ -262,7 +262,7 @@ impl Library {
     /// As [`Library::load`], except for a missing file.
     pub fn load_or_new(path: impl AsRef<Path>) -> Result<Self, LibraryError> {
         let path = path.as_ref();
-        match fs::read_to_string(path) {
+        match crate::limits::read_to_string_capped(path, crate::limits::MAX_LIBRARY_BYTES) {
             Ok(text) => Self::from_json(&text, &path.display().to_string()),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(Self::new()),
             Err(source) => Err(LibraryError::Io {
@@ -654,6 +654,7 @@ mod tests {
     use crate::material::{FilterCoefficients, FitRecord, SourceFile};
     use crate::signal::{Biquad, Sos};
     use crate::units::{Band, SampleRate};
+    use std::fs;
 
     /// A valid model: one resonant section whose fit record is its own response.
     fn model(name: &str) -> MaterialModel {

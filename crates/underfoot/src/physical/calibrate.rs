@@ -971,7 +971,7 @@ impl GainFit<'_> {
             a.view_mut((0, j), (2 * n, 1)).copy_from(&(c / norms[j]));
             a[(2 * n + j, j)] = ridge;
         }
-        let svd = a.svd(true, true);
+        let svd = crate::fit::svd(a).map_err(CalibrationError::Gains)?;
         let mut phase = self.initial_phase.to_vec();
         let mut best: Option<(f64, Vec<f64>)> = None;
         for _ in 0..PHASE_ROUNDS {

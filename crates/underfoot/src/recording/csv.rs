@@ -21,7 +21,7 @@
 //! through here and rejected with their row index by the common checks in
 //! [`read_bytes`](super::read_bytes).
 
-use super::{CsvSpec, RecordingError};
+use super::{CsvSpec, MAX_RECORDING_FRAMES, RecordingError};
 use std::path::Path;
 
 /// Reads the `spec.column` column of a CSV file held in memory.
@@ -114,6 +114,12 @@ pub(crate) fn read_column(
                 format!("column {column}: '{field}' is not a number"),
             )
         })?;
+        if samples.len() == MAX_RECORDING_FRAMES {
+            return Err(RecordingError::TooLong {
+                file: file.to_path_buf(),
+                limit: format!("{MAX_RECORDING_FRAMES} rows"),
+            });
+        }
         samples.push(value);
     }
     Ok(samples)

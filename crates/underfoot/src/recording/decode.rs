@@ -19,6 +19,7 @@
 //! keeps a signal present identically on all channels at its level.
 
 use super::RecordingError;
+use crate::limits::MAX_RECORDING_FRAMES;
 use crate::units::SampleRate;
 use std::io::Cursor;
 use std::path::Path;
@@ -75,6 +76,13 @@ pub(crate) fn decode_audio(
         .and_then(|p| p.audio())
         .ok_or_else(|| corrupt("the audio track has no codec parameters".into()))?
         .clone();
+    let too_long = || RecordingError::TooLong {
+        file: file.to_path_buf(),
+        limit: format!("{MAX_RECORDING_FRAMES} frames (30 minutes at 48 kHz)"),
+    };
+    if promised_frames.is_some_and(|n| n > MAX_RECORDING_FRAMES as u64) {
+        return Err(too_long());
+    }
     let mut rate = params.sample_rate;
     if rate == Some(0) {
         return Err(invalid_rate(file, "the header says 0 Hz".into()));
@@ -83,7 +91,9 @@ pub(crate) fn decode_audio(
         .make_audio_decoder(&params, &AudioDecoderOptions::default())
         .map_err(|e| corrupt(format!("no decoder for this codec ({e})")))?;
 
-    let mut mono: Vec<f64> = Vec::new();
+    // Sized from the header when it gives a length (bounded above): growing by doubling
+    // would hold up to twice the recording at the end.
+    let mut mono: Vec<f64> = Vec::with_capacity(promised_frames.map_or(0, |n| n as usize));
     let mut channels: Option<usize> = None;
     let mut interleaved: Vec<f64> = Vec::new();
     let mut packet_index = 0usize;
@@ -136,6 +146,9 @@ pub(crate) fn decode_audio(
                 )));
             }
             Some(_) => {}
+        }
+        if mono.len() + buf.frames() > MAX_RECORDING_FRAMES {
+            return Err(too_long());
         }
         buf.copy_to_vec_interleaved(&mut interleaved);
         let inv = 1.0 / c as f64;

@@ -21,6 +21,16 @@ pub enum RecordingError {
         source: std::io::Error,
     },
 
+    /// The file, or what it decodes to, is longer than the documented limit
+    /// ([`crate::limits`]).
+    #[error("{}: too long: more than {limit} (split the recording)", file.display())]
+    TooLong {
+        /// The file.
+        file: PathBuf,
+        /// The limit, in words.
+        limit: String,
+    },
+
     /// The file decoded to no samples at all.
     #[error("{}: holds no samples", file.display())]
     Empty {
@@ -115,6 +125,7 @@ impl RecordingError {
     pub fn file(&self) -> &std::path::Path {
         match self {
             Self::Io { file, .. }
+            | Self::TooLong { file, .. }
             | Self::Empty { file }
             | Self::TooShort { file, .. }
             | Self::Silent { file, .. }

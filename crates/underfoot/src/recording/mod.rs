@@ -28,6 +28,12 @@
 //!    sensor stuck at 512) and a float file of constant 0.25 are all caught by one rule,
 //!    while a real recording, whose noise floor is far above `1e-9` full scale, passes.
 //!
+//! # Size
+//! A file is read only up to [`MAX_RECORDING_BYTES`] and decodes to at most
+//! [`MAX_RECORDING_FRAMES`] frames (30 minutes at 48 kHz); beyond either it is refused as
+//! [`RecordingError::TooLong`] before memory grows further, so a device node (`/dev/zero`)
+//! or a pipe that never ends is refused too.
+//!
 //! Heel strikes are found in [`strikes`].
 mod csv;
 mod decode;
@@ -36,6 +42,8 @@ pub mod strikes;
 
 pub use error::RecordingError;
 
+use crate::limits::read_capped;
+pub use crate::limits::{MAX_RECORDING_BYTES, MAX_RECORDING_FRAMES};
 use crate::units::{SampleRate, Seconds};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
@@ -85,9 +93,18 @@ pub struct CsvSpec {
 /// A [`RecordingError`] naming the file when it cannot be read, decoded, or is empty,
 /// silent, too short or holds non-finite samples; see the [module docs](self#checks).
 pub fn read(path: &Path, csv: Option<&CsvSpec>) -> Result<Recording, RecordingError> {
-    let bytes = std::fs::read(path).map_err(|source| RecordingError::Io {
-        file: path.to_path_buf(),
-        source,
+    let bytes = read_capped(path, MAX_RECORDING_BYTES).map_err(|source| {
+        if source.kind() == std::io::ErrorKind::FileTooLarge {
+            RecordingError::TooLong {
+                file: path.to_path_buf(),
+                limit: format!("{} MiB", MAX_RECORDING_BYTES >> 20),
+            }
+        } else {
+            RecordingError::Io {
+                file: path.to_path_buf(),
+                source,
+            }
+        }
     })?;
     let name = path.file_name().map_or_else(
         || path.to_string_lossy().into_owned(),
@@ -225,6 +242,48 @@ mod tests {
         ));
         z[3] = 2e-9;
         assert!(check(f, r, &z).is_ok());
+    }
+
+    /// A 16-bit mono WAV header whose data chunk claims `data_len` bytes, then `body`.
+    fn wav_claiming(data_len: u32, body: &[u8]) -> Vec<u8> {
+        let mut w = Vec::new();
+        w.extend_from_slice(b"RIFF");
+        w.extend_from_slice(&data_len.saturating_add(36).to_le_bytes());
+        w.extend_from_slice(b"WAVEfmt ");
+        w.extend_from_slice(&16u32.to_le_bytes());
+        w.extend_from_slice(&1u16.to_le_bytes()); // PCM
+        w.extend_from_slice(&1u16.to_le_bytes()); // mono
+        w.extend_from_slice(&48_000u32.to_le_bytes());
+        w.extend_from_slice(&96_000u32.to_le_bytes());
+        w.extend_from_slice(&2u16.to_le_bytes());
+        w.extend_from_slice(&16u16.to_le_bytes());
+        w.extend_from_slice(b"data");
+        w.extend_from_slice(&data_len.to_le_bytes());
+        w.extend_from_slice(body);
+        w
+    }
+
+    #[test]
+    fn a_header_promising_more_than_the_cap_is_refused_before_decoding() {
+        let body: Vec<u8> = (0..4800u32)
+            .flat_map(|i| ((i % 200) as i16).to_le_bytes())
+            .collect();
+        let fine = wav_claiming(body.len() as u32, &body);
+        assert_eq!(
+            read_bytes("ok.wav", &fine, None).unwrap().samples.len(),
+            4800
+        );
+        let e = read_bytes("huge.wav", &wav_claiming(u32::MAX - 64, &body), None).unwrap_err();
+        assert!(matches!(e, RecordingError::TooLong { .. }), "{e:?}");
+        assert!(e.to_string().contains("huge.wav"), "{e}");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn an_endless_device_is_refused_not_read_forever() {
+        // Issue 14: `fit /dev/zero` grew until the kernel killed it.
+        let e = read(Path::new("/dev/zero"), None).unwrap_err();
+        assert!(matches!(e, RecordingError::TooLong { .. }), "{e:?}");
     }
 
     #[test]
