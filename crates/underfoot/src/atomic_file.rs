@@ -281,9 +281,10 @@ impl OutputFile {
         };
         let dir = parent_dir(target);
         let name = target.file_name().unwrap_or_default().to_string_lossy();
-        // pid and counter keep concurrent writers out of each other's way.
+        // pid and counter keep concurrent writers out of each other's way; the name ends
+        // with the target's, so a writer that goes by the extension (plots) still can.
         let tmp = dir.join(format!(
-            ".{name}.tmp-{}-{}",
+            ".tmp-{}-{}.{name}",
             std::process::id(),
             COUNTER.fetch_add(1, Ordering::Relaxed)
         ));
@@ -293,6 +294,33 @@ impl OutputFile {
             .open(&tmp)
             .map_err(io(&tmp, "creating a temporary file"))?;
         Ok((tmp, f))
+    }
+
+    /// For a writer that insists on creating the file itself from a path (a plotting
+    /// library): `write` writes the temporary file at the path it is given (same
+    /// extension as the target), which then replaces the target as in
+    /// [`write`](Self::write). On error the temporary file is removed.
+    ///
+    /// # Errors
+    /// `write`'s own, or the [`AtomicWriteError`] of the step that failed.
+    pub fn write_with<T, E: From<AtomicWriteError>>(
+        &self,
+        write: impl FnOnce(&Path) -> Result<T, E>,
+    ) -> Result<T, E> {
+        let (tmp, f) = self.create_temporary()?;
+        drop(f);
+        let result = write(&tmp).and_then(|value| {
+            let f = fs::OpenOptions::new()
+                .write(true)
+                .open(&tmp)
+                .map_err(io(&tmp, "reopening the temporary file"))?;
+            self.persist(&tmp, &f)?;
+            Ok(value)
+        });
+        if result.is_err() {
+            let _ = fs::remove_file(&tmp);
+        }
+        result
     }
 
     /// Completes a temporary file from [`create_temporary`](Self::create_temporary):
