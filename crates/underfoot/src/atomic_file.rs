@@ -67,8 +67,11 @@ pub const MAX_LINKS: usize = 40;
 
 /// A file could not be written, or the policy refused it; the file that was there (if
 /// any) is untouched.
+///
+/// Its message is the action and the path; the reason is its [source](std::error::Error::source)
+/// (so a chain printed as `{:#}` says it once).
 #[derive(Debug, thiserror::Error)]
-#[error("{action} {}: {source}", path.display())]
+#[error("{action} {}", path.display())]
 pub struct AtomicWriteError {
     /// The file (or the temporary file next to it).
     pub path: PathBuf,
@@ -538,6 +541,10 @@ fn check_not_input(given: &Path, target: &Path, inputs: &[&Path]) -> Result<(), 
 mod tests {
     use super::*;
 
+    fn full(e: &AtomicWriteError) -> String {
+        format!("{e}: {}", e.source)
+    }
+
     #[test]
     fn replaces_the_file_and_leaves_no_temporary() {
         let dir = tempfile::tempdir().unwrap();
@@ -557,7 +564,7 @@ mod tests {
         fs::write(path.join("keep"), b"kept").unwrap();
         let e = write_atomic(&path, b"new").expect_err("a directory");
         assert!(e.is_refusal(), "{e}");
-        assert!(e.to_string().contains("a directory"), "{e}");
+        assert!(full(&e).contains("a directory"), "{e}");
         assert_eq!(fs::read(path.join("keep")).unwrap(), b"kept");
         assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
     }
@@ -627,26 +634,21 @@ mod tests {
         std::os::unix::fs::symlink("/dev/null", &link).unwrap();
         let e = write_atomic(&link, b"x").unwrap_err();
         assert!(e.is_refusal(), "{e}");
-        assert!(e.to_string().contains("character device"), "{e}");
-        assert!(e.to_string().contains('-'), "{e}");
+        assert!(full(&e).contains("character device"), "{e}");
+        assert!(full(&e).contains('-'), "{e}");
         assert!(fs::symlink_metadata(&link).unwrap().is_symlink());
         let fifo = dir.path().join("fifo");
         let made = std::process::Command::new("mkfifo").arg(&fifo).status();
         if made.is_ok_and(|s| s.success()) {
             let e = write_atomic(&fifo, b"x").unwrap_err();
-            assert!(e.to_string().contains("FIFO"), "{e}");
+            assert!(full(&e).contains("FIFO"), "{e}");
         } else {
             eprintln!("skipped the FIFO case: mkfifo is not available");
         }
         // A socket.
         let sock = dir.path().join("sock");
         let _listener = std::os::unix::net::UnixListener::bind(&sock).unwrap();
-        assert!(
-            write_atomic(&sock, b"x")
-                .unwrap_err()
-                .to_string()
-                .contains("socket")
-        );
+        assert!(full(&write_atomic(&sock, b"x").unwrap_err()).contains("socket"));
     }
 
     #[cfg(unix)]
@@ -658,7 +660,7 @@ mod tests {
         fs::write(&path, b"old").unwrap();
         fs::set_permissions(&path, fs::Permissions::from_mode(0o444)).unwrap();
         let e = write_atomic(&path, b"new").unwrap_err();
-        assert!(e.is_refusal() && e.to_string().contains("read-only"), "{e}");
+        assert!(e.is_refusal() && full(&e).contains("read-only"), "{e}");
         assert_eq!(fs::read(&path).unwrap(), b"old");
     }
 
@@ -674,10 +676,7 @@ mod tests {
         for out in ["in.wav", "hard.wav", "soft.wav", "./sub/../in.wav"] {
             fs::create_dir_all(dir.path().join("sub")).unwrap();
             let e = OutputFile::check(&dir.path().join(out), &[&input]).unwrap_err();
-            assert!(
-                e.to_string().contains("which this command reads"),
-                "{out}: {e}"
-            );
+            assert!(full(&e).contains("which this command reads"), "{out}: {e}");
         }
         // An input that does not exist yet, by canonical path.
         let ghost = dir.path().join("ghost.json");
@@ -688,7 +687,7 @@ mod tests {
         // Two outputs naming one file.
         let a = dir.path().join("a.json");
         let e = OutputFile::check_all(&[&a, &dir.path().join("sub/../a.json")], &[]).unwrap_err();
-        assert!(e.to_string().contains("another output"), "{e}");
+        assert!(full(&e).contains("another output"), "{e}");
     }
 
     #[test]

@@ -87,7 +87,7 @@ pub fn save<T: Document>(path: &Path, doc: &T) -> Result<(), CompensationError> 
     let mut text =
         serde_json::to_string_pretty(doc).map_err(|e| file_error(path, e.to_string()))?;
     text.push('\n');
-    write_atomic(path, text.as_bytes()).map_err(|e| file_error(path, e.to_string()))
+    write_atomic(path, text.as_bytes()).map_err(|e| file_error(path, format!("{e}: {}", e.source)))
 }
 
 /// [`save`] to an output the caller checked against the output policy
@@ -102,7 +102,7 @@ pub fn save_to<T: Document>(out: &OutputFile, doc: &T) -> Result<(), Compensatio
         serde_json::to_string_pretty(doc).map_err(|e| file_error(path, e.to_string()))?;
     text.push('\n');
     out.write(text.as_bytes())
-        .map_err(|e| file_error(path, e.to_string()))
+        .map_err(|e| file_error(path, format!("{e}: {}", e.source)))
 }
 
 /// A measured frequency response (`underfoot calibrate sweep`).

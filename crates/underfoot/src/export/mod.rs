@@ -149,7 +149,7 @@ pub enum ExportError {
         tolerance_db: f64,
     },
     /// The header could not be written.
-    #[error("writing the header: {0}")]
+    #[error("writing the header")]
     Write(#[from] AtomicWriteError),
 }
 

@@ -423,7 +423,7 @@ impl Drop for WavSink {
 fn open_error(path: &Path, e: &AtomicWriteError) -> IoError {
     IoError::Open {
         device: path.display().to_string(),
-        reason: e.to_string(),
+        reason: format!("{e}: {}", e.source),
     }
 }
 
