@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use clap::{Args, Subcommand};
+use underfoot::atomic_file::OutputFile;
 use underfoot::compensation::equalizer::{
     Equalized, EqualizerConfig, EqualizerFilter, PassReport, Realisation, equalize,
 };
@@ -439,11 +440,42 @@ pub fn run(cmd: &CalibrateCommand) -> anyhow::Result<()> {
     }
 }
 
+/// `--out` and `--plot` of a calibrate command against the output policy
+/// (`underfoot::atomic_file`) with the files the command reads, before anything is
+/// measured or written.
+fn check_outputs(
+    out: &Path,
+    plot: Option<&Path>,
+    inputs: &[&Path],
+) -> anyhow::Result<(OutputFile, Option<OutputFile>)> {
+    let out = OutputFile::check(out, inputs)?;
+    let plot = match plot {
+        Some(p) => {
+            let o = OutputFile::check(p, inputs)?;
+            o.distinct_from(&out)?;
+            Some(o)
+        }
+        None => None,
+    };
+    Ok((out, plot))
+}
+
+impl SweepSettings {
+    /// The limb file of `--load`, if it is one.
+    fn input_file(&self) -> Option<&Path> {
+        match &self.load {
+            Some(UserArg::File(p)) => Some(p),
+            _ => None,
+        }
+    }
+}
+
 fn sensors(args: &SensorsArgs) -> anyhow::Result<()> {
+    let (out, _) = check_outputs(&args.out, None, &[&args.readings])?;
     let session = read_session(&args.readings)?;
     let (calibration, reports) = SensorCalibration::fit(&session, args.kind)
         .with_context(|| format!("fitting the sensors of {}", args.readings.display()))?;
-    calibration.save(&args.out)?;
+    calibration.save_to(&out)?;
     let rows: Vec<Vec<String>> = reports
         .iter()
         .zip(&calibration.sensors)
@@ -485,6 +517,9 @@ fn sensors(args: &SensorsArgs) -> anyhow::Result<()> {
 }
 
 fn limb(args: &LimbArgs) -> anyhow::Result<()> {
+    let mut inputs: Vec<&Path> = args.sweeps.iter().map(PathBuf::as_path).collect();
+    inputs.extend(args.unloaded.as_deref());
+    let (out, plot_out) = check_outputs(&args.out, args.plot.as_deref(), &inputs)?;
     let loaded: Vec<ResponseFile> = args
         .sweeps
         .iter()
@@ -529,7 +564,7 @@ fn limb(args: &LimbArgs) -> anyhow::Result<()> {
     let seconds = started.elapsed().as_secs_f64();
     let p = fit.model.params;
     let file = LimbFile::new(fit.model, first.band, fit.rms_error_db, description);
-    files::save(&args.out, &file)?;
+    files::save_to(&out, &file)?;
     let pct = |i: usize| {
         let s = fit.relative_std[i];
         if s.is_finite() {
@@ -555,7 +590,8 @@ fn limb(args: &LimbArgs) -> anyhow::Result<()> {
         fit.rms_error_db,
         args.out.display()
     ))?;
-    if let Some(plot) = &args.plot {
+    if let Some(plot_out) = &plot_out {
+        let plot = plot_out.path();
         let f: Vec<f64> = first.freqs_hz.clone();
         let model: Vec<f64> = freqs
             .iter()
@@ -575,7 +611,9 @@ fn limb(args: &LimbArgs) -> anyhow::Result<()> {
         ];
         plotted(
             plot,
-            draw_responses(plot, "Loaded response and the limb model H_u", &curves)?,
+            plot_out.write_with(|p| {
+                draw_responses(p, "Loaded response and the limb model H_u", &curves)
+            })?,
         )?;
     }
     Ok(())
@@ -583,6 +621,13 @@ fn limb(args: &LimbArgs) -> anyhow::Result<()> {
 
 fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
     let s = &args.settings;
+    let inputs: Vec<&Path> = args
+        .eq
+        .as_deref()
+        .into_iter()
+        .chain(s.input_file())
+        .collect();
+    let (out, plot_out) = check_outputs(&args.out, args.plot.as_deref(), &inputs)?;
     let sweep = s.sweep()?;
     let (mut device, mut description) = s.device(&args.device)?;
     let response = match &args.eq {
@@ -616,7 +661,7 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         s.repeats,
         description,
     );
-    files::save(&args.out, &file)?;
+    files::save_to(&out, &file)?;
     emit(&format!(
         "measured {}: {} points over {}-{} Hz, {:.2} dB from flat (RMS); wrote {}\n",
         file.description,
@@ -626,7 +671,8 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         file.deviation_db,
         args.out.display()
     ))?;
-    if let Some(plot) = &args.plot {
+    if let Some(plot_out) = &plot_out {
+        let plot = plot_out.path();
         let db = centred(&response);
         let freqs: Vec<f64> = response.freqs.iter().map(|f| f.0).collect();
         let curves = [Curve {
@@ -636,7 +682,9 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         }];
         plotted(
             plot,
-            draw_responses(plot, "Frequency response (relative to its mean)", &curves)?,
+            plot_out.write_with(|p| {
+                draw_responses(p, "Frequency response (relative to its mean)", &curves)
+            })?,
         )?;
     }
     Ok(())
@@ -644,6 +692,8 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
 
 fn equalize_cmd(args: &EqualizeArgs) -> anyhow::Result<()> {
     let s = &args.settings;
+    let inputs: Vec<&Path> = s.input_file().into_iter().collect();
+    let (out, plot_out) = check_outputs(&args.out, args.plot.as_deref(), &inputs)?;
     let realisation = match args.realisation.as_str() {
         "low-delay" => Realisation::LowDelay { taps: args.taps },
         "bank" => Realisation::Bank,
@@ -670,7 +720,7 @@ fn equalize_cmd(args: &EqualizeArgs) -> anyhow::Result<()> {
         Realisation::LowDelay { .. } => 0.0,
     };
     let file = EqualizerFile::new(eq.weights, realisation, passes.clone(), description);
-    files::save(&args.out, &file)?;
+    files::save_to(&out, &file)?;
     let rows: Vec<Vec<String>> = passes
         .iter()
         .map(|p| {
@@ -702,8 +752,10 @@ fn equalize_cmd(args: &EqualizeArgs) -> anyhow::Result<()> {
         ),
         args.out.display()
     ))?;
-    if let Some(plot) = &args.plot {
-        draw_passes(plot, &eq.passes)?;
+    if let Some(plot_out) = &plot_out {
+        let plot = plot_out.path();
+        let _ = plot;
+        draw_passes(plot_out, &eq.passes)?;
     }
     Ok(())
 }
@@ -715,7 +767,7 @@ fn centred(response: &FrequencyResponse) -> Vec<f64> {
     db.iter().map(|d| d - mean).collect()
 }
 
-fn draw_passes(path: &Path, passes: &[PassReport]) -> anyhow::Result<()> {
+fn draw_passes(out: &OutputFile, passes: &[PassReport]) -> anyhow::Result<()> {
     let data: Vec<(Vec<f64>, Vec<f64>)> = passes
         .iter()
         .map(|p| {
@@ -735,8 +787,10 @@ fn draw_passes(path: &Path, passes: &[PassReport]) -> anyhow::Result<()> {
         })
         .collect();
     plotted(
-        path,
-        draw_responses(path, "Equalized device against flat, pass by pass", &curves)?,
+        out.path(),
+        out.write_with(|p| {
+            draw_responses(p, "Equalized device against flat, pass by pass", &curves)
+        })?,
     )
 }
 

@@ -34,7 +34,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use clap::Args;
 use serde::Serialize;
-use underfoot::atomic_file::write_atomic;
+use underfoot::atomic_file::OutputFile;
 use underfoot::material::build::{BuildConfig, build_material};
 use underfoot::material::library::validate_name;
 use underfoot::physical::calibrate::{held_out_seed, score_render};
@@ -47,7 +47,7 @@ use crate::plot::{self, Omitted, Panel};
 /// Arguments of `underfoot compare`.
 #[derive(Debug, Args)]
 pub struct CompareArgs {
-    /// Also write the table as JSON here.
+    /// Also write the table as JSON here (`-`: standard output, after the table).
     #[arg(long, value_name = "FILE.json")]
     json: Option<PathBuf>,
     /// Draw one spectrum plot per material into this directory (created if missing).
@@ -144,9 +144,32 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
             );
         }
     }
+    // Every output against the output policy (underfoot::atomic_file) before the slow
+    // part: never a recording, never a device, no two outputs one file.
+    let mut recordings_of = Vec::with_capacity(args.materials.len());
+    for (_, folder) in &args.materials {
+        recordings_of.push(recordings_in(folder)?);
+    }
+    let inputs: Vec<&std::path::Path> = recordings_of
+        .iter()
+        .flatten()
+        .map(PathBuf::as_path)
+        .collect();
+    let json_out = match &args.json {
+        Some(p) => Some(OutputFile::check_or_stdout(p, &inputs)?),
+        None => None,
+    };
+    let mut plot_outs = Vec::new();
     if let Some(dir) = &args.plot {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("creating plot directory {}", dir.display()))?;
+        for (name, _) in &args.materials {
+            let o = OutputFile::check(&dir.join(format!("{name}.{}", args.plot_format)), &inputs)?;
+            for other in plot_outs.iter().chain(json_out.as_ref()) {
+                o.distinct_from(other)?;
+            }
+            plot_outs.push(o);
+        }
     }
     let cfg = BuildConfig::default();
     let cal = cfg.physical.clone().unwrap_or_default();
@@ -163,8 +186,8 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
         "kind",
         "modes"
     ))?;
-    for (name, folder) in &args.materials {
-        let files = recordings_in(folder)?;
+    for (i, (name, folder)) in args.materials.iter().enumerate() {
+        let files = &recordings_of[i];
         let recordings = files
             .iter()
             .map(|f| recording::read(f, None))
@@ -216,20 +239,22 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
             row.physical.kind,
             row.physical.modes
         ))?;
-        if let Some(dir) = &args.plot {
-            let path = dir.join(format!("{name}.{}", args.plot_format));
+        if let Some(out) = plot_outs.get(i) {
+            let path = out.path();
             let title = format!(
                 "{name}: IIR LSD {:.2} dB, physical LSD {:.2} dB (held-out render)",
                 row.iir.lsd_db, row.physical.held_out_lsd_db
             );
-            let omitted = plot::draw_spectra(
-                &path,
-                &[Panel {
-                    title,
-                    fit: &model.fit,
-                    physical: Some(&curve),
-                }],
-            )?;
+            let omitted = out.write_with(|p| {
+                plot::draw_spectra(
+                    p,
+                    &[Panel {
+                        title,
+                        fit: &model.fit,
+                        physical: Some(&curve),
+                    }],
+                )
+            })?;
             if omitted == Omitted::Text {
                 eprintln!(
                     "underfoot: warning: no font found, {} has no text (set UNDERFOOT_FONT to a .ttf file, or use --plot-format svg)",
@@ -239,10 +264,10 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
         }
         rows.push(row);
     }
-    if let Some(path) = &args.json {
+    if let Some(out) = &json_out {
         let mut json = serde_json::to_string_pretty(&Table { materials: rows })?;
         json.push('\n');
-        write_atomic(path, json.as_bytes())?;
+        out.write(json.as_bytes())?;
     }
     Ok(())
 }

@@ -19,7 +19,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::Args;
 use serde::Serialize;
-use underfoot::atomic_file::write_atomic;
+use underfoot::atomic_file::OutputFile;
 use underfoot::engine::offline::{render, segment_lsd, walk_across};
 use underfoot::force::gait::GaitConfig;
 use underfoot::io::wav::{WavFormat, WavSink};
@@ -82,6 +82,24 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     ))?;
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("creating output directory {}", args.out_dir.display()))?;
+    // The five files against the output policy (underfoot::atomic_file) before any is
+    // written: never the library or compensation files the demo reads, never a device.
+    let inputs = args.synth.input_files();
+    let inputs: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
+    let names = [
+        "walk.wav",
+        "walk-force.csv",
+        "walk.json",
+        "walk.svg",
+        "spectra.svg",
+    ];
+    let paths: Vec<PathBuf> = names.iter().map(|n| args.out_dir.join(n)).collect();
+    let outs = OutputFile::check_all(
+        &paths.iter().map(PathBuf::as_path).collect::<Vec<_>>(),
+        &inputs,
+    )?;
+    let [wav_out, force_out, json_out, spectrogram_out, spectra_out] =
+        <[OutputFile; 5]>::try_from(outs).map_err(|_| anyhow::anyhow!("five outputs"))?;
 
     // Level: the loudest material's strongest step 3 dB under the ceiling.
     let loudest = setup
@@ -119,11 +137,11 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         256,
     )?;
 
-    let wav = args.out_dir.join("walk.wav");
-    let mut sink = WavSink::create(&wav, rate, 1, WavFormat::Float32)?;
+    let wav = wav_out.path().to_path_buf();
+    let mut sink = WavSink::to_output(wav_out, rate, 1, WavFormat::Float32)?;
     sink.write_interleaved(&out.samples)?;
     sink.finish()?;
-    walk.track.save(&args.out_dir.join("walk-force.csv"))?;
+    walk.track.save_to(&force_out)?;
 
     let mut segments = Vec::new();
     for seg in &walk.segments {
@@ -185,7 +203,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         segments,
     };
     let json = serde_json::to_string_pretty(&report)? + "\n";
-    write_atomic(&args.out_dir.join("walk.json"), json.as_bytes())?;
+    json_out.write(json.as_bytes())?;
 
     let labels: Vec<Segment<'_>> = walk
         .segments
@@ -197,18 +215,20 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         })
         .collect();
     let top = walk_top(&setup.library);
-    let spectrogram = args.out_dir.join("walk.svg");
-    let omitted = plot::draw_spectrogram(
-        &spectrogram,
-        &format!("A walk across {which}"),
-        &out.samples,
-        rate.0,
-        top,
-        &labels,
-    )?;
+    let spectrogram = spectrogram_out.path();
+    let omitted = spectrogram_out.write_with(|p| {
+        plot::draw_spectrogram(
+            p,
+            &format!("A walk across {which}"),
+            &out.samples,
+            rate.0,
+            top,
+            &labels,
+        )
+    })?;
     debug_assert_eq!(omitted, Omitted::Nothing);
 
-    let path = args.out_dir.join("spectra.svg");
+    let path = spectra_out.path();
     let panels: Vec<Panel<'_>> = setup
         .library
         .materials
@@ -220,7 +240,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         })
         .collect();
     // SVG never omits text (see the plot module), so there is nothing to warn about.
-    let omitted = plot::draw_spectra(&path, &panels)?;
+    let omitted = spectra_out.write_with(|p| plot::draw_spectra(p, &panels))?;
     debug_assert_eq!(omitted, Omitted::Nothing);
     emit(&format!(
         "\nwalk: {}\nforce: {}\nspectrogram: {}\nspectra: {}\nreport: {}\n",

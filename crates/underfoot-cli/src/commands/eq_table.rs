@@ -7,6 +7,8 @@ use clap::{Args, Subcommand};
 use underfoot::compensation::files::{self, EqualizerFile, LimbFile};
 use underfoot::compensation::table::{UserEntry, UserTable};
 
+use underfoot::atomic_file::OutputFile;
+
 use crate::output::emit;
 use crate::report::{Align, table};
 
@@ -53,6 +55,9 @@ pub fn run(cmd: &EqTableCommand) -> anyhow::Result<()> {
 }
 
 fn add(args: &AddArgs) -> anyhow::Result<()> {
+    // The table is edited in place: checked against the output policy
+    // (underfoot::atomic_file) first, then read, changed and written under its edit lock.
+    let out = OutputFile::check(&args.table, &[&args.eq, &args.user])?;
     let eq: EqualizerFile = files::load(&args.eq)?;
     let user: LimbFile = files::load(&args.user)?;
     let name = match &args.name {
@@ -71,6 +76,7 @@ fn add(args: &AddArgs) -> anyhow::Result<()> {
     let mut weights = eq.weights.clone();
     weights.add_in_band(|f| 20.0 * zc.response(rate.omega(f)).norm().log10());
     let freqs = weights.frequencies();
+    let _lock = out.lock()?;
     let mut users = if args.table.exists() {
         let t = UserTable::load(&args.table)?;
         anyhow::ensure!(
@@ -88,7 +94,7 @@ fn add(args: &AddArgs) -> anyhow::Result<()> {
         params: user.model.params,
         weights_db: weights.gains_db,
     })?;
-    users.save(&args.table)?;
+    users.save_to(&out)?;
     emit(&format!(
         "{} {name} in {}: {} user(s)\n",
         if replaced.is_some() {

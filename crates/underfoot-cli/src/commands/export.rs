@@ -8,6 +8,8 @@ use clap::{Args, ValueEnum};
 use underfoot::export::{self, ExportConfig, c};
 use underfoot::units::Decibels;
 
+use underfoot::atomic_file::OutputFile;
+
 use crate::output::emit;
 use crate::report::{Align, table};
 
@@ -35,7 +37,8 @@ pub struct ExportArgs {
     /// Output format.
     #[arg(long, value_enum, default_value = "c")]
     pub format: Format,
-    /// The header to write (replaced atomically).
+    /// The header to write (replaced atomically), or `-` for standard output (the table
+    /// then goes to standard error).
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
     /// Library file [default: the built-in library].
@@ -56,6 +59,15 @@ pub struct ExportArgs {
 /// Runs `underfoot export`.
 pub fn run(args: &ExportArgs) -> anyhow::Result<()> {
     let Format::C = args.format;
+    // The output policy (underfoot::atomic_file) before anything is read: never the
+    // library it exports, never a device.
+    let out = OutputFile::check_or_stdout(
+        &args.out,
+        &[args.library.as_deref()]
+            .into_iter()
+            .flatten()
+            .collect::<Vec<_>>(),
+    )?;
     let library = super::library::open(args.library.as_deref())?;
     let origin = args.library.as_ref().map_or_else(
         || "built-in library".to_string(),
@@ -72,7 +84,7 @@ pub fn run(args: &ExportArgs) -> anyhow::Result<()> {
     };
     let exported = export::export_library(&library, &origin, &args.materials, &config)
         .with_context(|| format!("exporting {origin}"))?;
-    export::write(&args.out, &c::header(&exported))?;
+    export::write_to(&out, &c::header(&exported))?;
 
     let db = |check: &export::FormatCheck, on: bool| {
         let d = check.worst_db();
@@ -128,5 +140,11 @@ pub fn run(args: &ExportArgs) -> anyhow::Result<()> {
         ],
         &rows,
     ));
-    emit(&text)
+    if out.is_stdout() {
+        // Standard output holds the header.
+        eprint!("{text}");
+        Ok(())
+    } else {
+        emit(&text)
+    }
 }

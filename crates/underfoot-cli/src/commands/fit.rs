@@ -19,7 +19,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use underfoot::analysis::SavgolSetting;
 use underfoot::analysis::{MAX_ANALYSIS_RATE, MIN_ANALYSIS_RATE};
-use underfoot::atomic_file::write_atomic;
+use underfoot::atomic_file::OutputFile;
 use underfoot::fit::{MAX_ORDER, OrderChoice};
 use underfoot::io::spec::{self, SpecError};
 use underfoot::material::Library;
@@ -260,8 +260,33 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         plot::Format::of(p)?;
         check_parent_dir(p, "plot")?;
     }
-    // Before the slow part: a broken library must not cost a fit to find out about.
-    let mut library = Library::load_or_new(&args.out)?;
+    // Every output against the output policy, with the recordings as inputs: none of
+    // them is ever an output, and no two outputs are one file.
+    let inputs: Vec<&Path> = args.files.iter().map(PathBuf::as_path).collect();
+    let library_out = OutputFile::check(&args.out, &inputs)?;
+    let report_out = match &args.report {
+        Some(p) => {
+            let o = OutputFile::check(p, &inputs)?;
+            o.distinct_from(&library_out)?;
+            Some(o)
+        }
+        None => None,
+    };
+    let plot_out = match &args.plot {
+        Some(p) => {
+            let o = OutputFile::check(p, &inputs)?;
+            o.distinct_from(&library_out)?;
+            if let Some(r) = &report_out {
+                o.distinct_from(r)?;
+            }
+            Some(o)
+        }
+        None => None,
+    };
+    // Before the slow part: a broken library must not cost a fit to find out about. It
+    // is read again under the edit lock when the material is added, so that fits into
+    // one library at the same time all land.
+    Library::load_or_new(&args.out)?;
 
     let csv = args.csv();
     let reading = bar(
@@ -334,8 +359,9 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         None
     };
 
-    let replaced = library.upsert(model.clone()).is_some();
-    library.save(&args.out)?;
+    let replaced = Library::edit(&library_out, true, |library| {
+        Ok(library.upsert(model.clone()).is_some())
+    })?;
     let physical = model.physical.as_ref().map_or(String::new(), |p| {
         format!(
             "; physical: {}, {} modes, LSD {:.2} dB (calibration render)",
@@ -373,7 +399,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
             ))?,
         }
     }
-    if let Some(path) = &args.report {
+    if let Some(out) = &report_out {
         let mut entry = FitReportEntry::of(&model);
         entry.strike_to_noise_db = checked
             .iter()
@@ -389,22 +415,25 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         };
         let mut json = serde_json::to_string_pretty(&report)?;
         json.push('\n');
-        write_atomic(path, json.as_bytes()).with_context(saved)?;
+        out.write(json.as_bytes()).with_context(saved)?;
     }
-    if let Some(path) = &args.plot {
+    if let (Some(path), Some(out)) = (&args.plot, &plot_out) {
         let title = format!(
             "{}: order {}, NRMSE {:.4}, LSD {:.2} dB",
             model.name, model.order, model.fit.nrmse, model.fit.lsd_db
         );
-        let omitted = plot::draw_spectra(
-            path,
-            &[Panel {
-                title,
-                fit: &model.fit,
-                physical: None,
-            }],
-        )
-        .with_context(saved)?;
+        let omitted = out
+            .write_with(|p| {
+                plot::draw_spectra(
+                    p,
+                    &[Panel {
+                        title,
+                        fit: &model.fit,
+                        physical: None,
+                    }],
+                )
+            })
+            .with_context(saved)?;
         if omitted == Omitted::Text {
             eprintln!(
                 "underfoot: warning: no font found, {} has no text (set UNDERFOOT_FONT to a .ttf file, or plot to .svg)",

@@ -10,6 +10,8 @@ use clap::Subcommand;
 use underfoot::material::builtin::builtin;
 use underfoot::material::{Library, MaterialModel};
 
+use underfoot::atomic_file::OutputFile;
+
 use crate::output::emit;
 use crate::report::{ListEntry, list_table};
 
@@ -98,13 +100,17 @@ pub fn run(cmd: &LibraryCommand) -> anyhow::Result<()> {
             }
         }
         LibraryCommand::Remove { name, library } => {
-            let mut lib = Library::load(library)?;
-            lib.remove(name).with_context(|| origin(Some(library)))?;
-            lib.save(library)?;
+            // Read, remove and write under the library's edit lock, so that a `fit` into
+            // the same library at the same time is not lost (underfoot::atomic_file).
+            let out = OutputFile::check(library, &[])?;
+            let left = Library::edit(&out, false, |lib| {
+                lib.remove(name)?;
+                Ok(lib.materials.len())
+            })
+            .with_context(|| origin(Some(library)))?;
             emit(&format!(
-                "removed {name:?} from {} ({} materials left)\n",
+                "removed {name:?} from {} ({left} materials left)\n",
                 library.display(),
-                lib.materials.len()
             ))
         }
     }

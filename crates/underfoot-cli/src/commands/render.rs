@@ -3,11 +3,23 @@
 //! The force comes from a CSV track (`--force`) or from the gait generator (`--gait`).
 //! The track's channel `k` drives output channel `k`. The real-time engine does the
 //! rendering, so a render is what a live session with the same input would play.
+//!
+//! # Outputs
+//!
+//! `--out` holds the drive and nothing else: every channel is what the actuator of that
+//! channel would get. `--force-out` writes each channel's total force as the engine saw
+//! it into a file of its own (32-bit float, kilonewtons, same rate and length), so force
+//! that reaches thousands of kN (a logger's raw counts) never shares a file with
+//! something that may be played. Every output (`--out`, `--force-out`, `--save-force`)
+//! is checked against the output policy (`underfoot::atomic_file`) together with the
+//! files the render reads, and the materials and library are checked too, before
+//! anything is written: a render that fails leaves every file as it was.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::{ArgGroup, Args};
+use underfoot::atomic_file::OutputFile;
 use underfoot::engine::offline::{render, track_events};
 use underfoot::engine::{Event, TimedEvent};
 use underfoot::force::condition::ForceConditioner;
@@ -42,11 +54,15 @@ pub struct RenderArgs {
     /// Save the generated force track too.
     #[arg(long = "save-force", value_name = "FILE.csv", requires = "gait")]
     save_force: Option<PathBuf>,
-    /// Output WAV file.
+    /// Output WAV file: the drive of each channel, nothing else.
     #[arg(long, value_name = "FILE.wav")]
     out: PathBuf,
-    /// Append each channel's total force as extra channels, in kilonewtons.
-    #[arg(long = "with-force")]
+    /// Also write each channel's total force as the engine saw it to this WAV file of its
+    /// own (32-bit float, in kilonewtons, one channel per output channel).
+    #[arg(long = "force-out", value_name = "FILE.wav")]
+    force_out: Option<PathBuf>,
+    /// Replaced by --force-out: force no longer shares a file with the drive.
+    #[arg(long = "with-force", hide = true)]
     with_force: bool,
     /// Sample format: f32, i16 or i24.
     #[arg(long, default_value = "f32", value_parser = parse_format)]
@@ -90,15 +106,43 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         "--tail {} s: need 0 to 60",
         args.tail
     );
+    anyhow::ensure!(
+        !args.with_force,
+        "--with-force is gone: force goes to a file of its own, --force-out FILE.wav \
+         (--out holds the drive only)"
+    );
+    // Every output is checked before anything is read or written (see the module docs).
+    let inputs = args.synth.input_files();
+    let inputs: Vec<&std::path::Path> = inputs
+        .iter()
+        .map(PathBuf::as_path)
+        .chain(args.force.as_deref())
+        .collect();
+    let wav_out = OutputFile::check(&args.out, &inputs)?;
+    let force_out = match &args.force_out {
+        Some(p) => {
+            let o = OutputFile::check(p, &inputs)?;
+            o.distinct_from(&wav_out)?;
+            Some(o)
+        }
+        None => None,
+    };
+    let save_force = match &args.save_force {
+        Some(p) => {
+            let o = OutputFile::check(p, &inputs)?;
+            o.distinct_from(&wav_out)?;
+            if let Some(f) = &force_out {
+                o.distinct_from(f)?;
+            }
+            Some(o)
+        }
+        None => None,
+    };
     let track = match (&args.force, &args.gait) {
         (Some(path), _) => ForceTrack::read(path)?,
         (None, Some(spec)) => {
             let config = GaitConfig::from_spec(spec)?;
-            let g = gait::generate(&config)?;
-            if let Some(path) = &args.save_force {
-                g.track.save(path)?;
-            }
-            g.track
+            gait::generate(&config)?.track
         }
         (None, None) => unreachable!("clap requires one input"),
     };
@@ -134,27 +178,25 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     )?;
     let elapsed = started.elapsed().as_secs_f64();
 
-    let force = args
-        .with_force
-        .then(|| force_at_audio_rate(&events, channels, frames, rate, Hz(args.synth.sensor_rate)));
-    let wav_channels = channels * if force.is_some() { 2 } else { 1 };
-    let mut sink = WavSink::create(&args.out, rate, wav_channels as u16, args.format)?;
-    let mut frame = vec![0.0f32; wav_channels];
-    let mut chunk = Vec::with_capacity(wav_channels * 4096);
-    for i in 0..frames {
-        frame[..channels].copy_from_slice(&out.samples[i * channels..(i + 1) * channels]);
-        if let Some(force) = &force {
-            for c in 0..channels {
-                frame[channels + c] = force[i * channels + c] / 1000.0;
-            }
-        }
-        chunk.extend_from_slice(&frame);
-        if chunk.len() >= wav_channels * 4096 || i + 1 == frames {
-            sink.write_interleaved(&chunk)?;
-            chunk.clear();
-        }
+    // Everything is computed and checked: the writes come last.
+    if let Some(o) = &save_force {
+        track.save_to(o)?;
+    }
+    let mut sink = WavSink::to_output(wav_out, rate, channels as u16, args.format)?;
+    for chunk in out.samples.chunks(channels * 4096) {
+        sink.write_interleaved(chunk)?;
     }
     let summary = sink.finish()?;
+    if let Some(o) = force_out {
+        let force =
+            force_at_audio_rate(&events, channels, frames, rate, Hz(args.synth.sensor_rate));
+        let mut sink = WavSink::to_output(o, rate, channels as u16, WavFormat::Float32)?;
+        let kilonewtons: Vec<f32> = force.iter().map(|f| f / 1000.0).collect();
+        for chunk in kilonewtons.chunks(channels * 4096) {
+            sink.write_interleaved(chunk)?;
+        }
+        sink.finish()?;
+    }
 
     let t = out.telemetry;
     let seconds = frames as f64 / rate.hz();

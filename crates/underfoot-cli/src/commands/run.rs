@@ -38,6 +38,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, bail};
 use clap::Args;
+use underfoot::atomic_file::OutputFile;
 use underfoot::engine::{self, Engine, TimedEvent};
 use underfoot::force::calibration::SensorCalibration;
 use underfoot::force::gait::{self, GaitConfig};
@@ -162,6 +163,8 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     if args.list_devices {
         return list_devices(&args.host);
     }
+    // The output file is checked before any input is opened (see `check_wav_output`).
+    let wav_out = check_wav_output(args)?;
     let (mut source, track_channels, ends) = open_input(args)?;
     let channels = args.channels.or(track_channels).unwrap_or(1);
     anyhow::ensure!(
@@ -200,6 +203,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let (mut controller, engine) = engine::build(&setup.config, setup.bank, &slots)?;
     let output = Output::start(
         &args.output,
+        wav_out,
         &args.host,
         args.buffer,
         channels,
@@ -468,6 +472,42 @@ fn open_input(args: &RunArgs) -> anyhow::Result<(Input, Option<usize>, bool)> {
     })
 }
 
+/// How often a `wav:` recording is brought up to date on disk: a killed session loses at
+/// most this much (see `underfoot::io::wav`, *Live recordings*).
+const LIVE_WAV_SYNC: Duration = Duration::from_millis(500);
+
+/// The file of `--output wav:FILE`, checked against the output policy
+/// (`underfoot::atomic_file`) with every file the session reads, before anything is
+/// opened: it is replaced (and only then) when the session has started and written its
+/// first buffer, and from then on it is a valid WAV file on disk at any moment.
+fn check_wav_output(args: &RunArgs) -> anyhow::Result<Option<OutputFile>> {
+    let Some(file) = args.output.strip_prefix("wav:") else {
+        return Ok(None);
+    };
+    if file.is_empty() {
+        return Ok(None); // Output::start says what is missing.
+    }
+    let mut inputs = args.synth.input_files();
+    inputs.extend(args.interface.clone());
+    inputs.extend(args.sensors.clone());
+    if let Some(replay) = args
+        .input
+        .as_deref()
+        .and_then(|i| i.strip_prefix("replay:"))
+    {
+        // The speed suffix, if any, is not part of the name; both readings are inputs.
+        inputs.push(PathBuf::from(replay));
+        if let Some((f, _)) = replay.rsplit_once('@') {
+            inputs.push(PathBuf::from(f));
+        }
+    }
+    let inputs: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
+    Ok(Some(OutputFile::check(
+        std::path::Path::new(file),
+        &inputs,
+    )?))
+}
+
 /// A running output.
 enum Output {
     #[cfg(feature = "audio")]
@@ -482,6 +522,7 @@ enum Output {
 impl Output {
     fn start(
         spec: &str,
+        wav_out: Option<OutputFile>,
         host: &str,
         buffer: Option<u32>,
         channels: usize,
@@ -496,15 +537,15 @@ impl Output {
                     kind == "null" || !rest.is_empty(),
                     "--output wav:FILE needs a file"
                 );
-                let sink = if kind == "wav" {
-                    Some(WavSink::create(
-                        rest,
+                let sink = match wav_out {
+                    Some(out) => Some(WavSink::live(
+                        out,
                         rate,
                         channels as u16,
                         WavFormat::Float32,
-                    )?)
-                } else {
-                    None
+                        LIVE_WAV_SYNC,
+                    )?),
+                    None => None,
                 };
                 let block = buffer.unwrap_or(256).clamp(16, 8192) as usize;
                 let stop = Arc::new(AtomicBool::new(false));

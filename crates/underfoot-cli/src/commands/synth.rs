@@ -91,6 +91,24 @@ pub struct Setup {
 }
 
 impl SynthArgs {
+    /// The files these settings read (library, equalizer, limb file, table): a command's
+    /// outputs must not be any of them.
+    pub fn input_files(&self) -> Vec<PathBuf> {
+        let user = match &self.user {
+            Some(UserArg::File(p)) => Some(p.clone()),
+            _ => None,
+        };
+        [
+            self.library.clone(),
+            self.eq.clone(),
+            self.eq_table.clone(),
+            user,
+        ]
+        .into_iter()
+        .flatten()
+        .collect()
+    }
+
     /// Loads the library, prepares every material and fills in the engine settings.
     pub fn setup(&self, channels: usize) -> anyhow::Result<Setup> {
         anyhow::ensure!(

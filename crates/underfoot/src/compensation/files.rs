@@ -14,7 +14,7 @@ use super::CompensationError;
 use super::equalizer::{PassReport, Realisation, SpectralWeights};
 use super::limb::LimbModel;
 use super::sweep::FrequencyResponse;
-use crate::atomic_file::write_atomic;
+use crate::atomic_file::{OutputFile, write_atomic};
 use crate::units::{Band, Hz, SampleRate};
 
 /// The version of every compensation file this build reads and writes.
@@ -88,7 +88,22 @@ pub fn save<T: Document>(path: &Path, doc: &T) -> Result<(), CompensationError> 
     let mut text =
         serde_json::to_string_pretty(doc).map_err(|e| file_error(path, e.to_string()))?;
     text.push('\n');
-    write_atomic(path, text.as_bytes()).map_err(|e| file_error(path, e.to_string()))
+    write_atomic(path, text.as_bytes()).map_err(|e| file_error(path, format!("{e}: {}", e.source)))
+}
+
+/// [`save`] to an output the caller checked against the output policy
+/// ([`crate::atomic_file`]) together with its inputs.
+///
+/// # Errors
+/// As [`save`].
+pub fn save_to<T: Document>(out: &OutputFile, doc: &T) -> Result<(), CompensationError> {
+    let path = out.path();
+    doc.validate()?;
+    let mut text =
+        serde_json::to_string_pretty(doc).map_err(|e| file_error(path, e.to_string()))?;
+    text.push('\n');
+    out.write(text.as_bytes())
+        .map_err(|e| file_error(path, format!("{e}: {}", e.source)))
 }
 
 /// A measured frequency response (`underfoot calibrate sweep`).

@@ -222,6 +222,23 @@ impl UserTable {
             },
         )
     }
+
+    /// [`UserTable::save`] to an output the caller checked against the output policy
+    /// ([`crate::atomic_file`]).
+    ///
+    /// # Errors
+    /// As [`UserTable::save`].
+    pub fn save_to(&self, out: &crate::atomic_file::OutputFile) -> Result<(), CompensationError> {
+        files::save_to(
+            out,
+            &TableFile {
+                kind: TableFile::KIND.to_string(),
+                version: FORMAT_VERSION,
+                freqs: self.freqs.clone(),
+                entries: self.entries.clone(),
+            },
+        )
+    }
 }
 
 impl TableFile {

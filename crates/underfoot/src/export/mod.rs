@@ -93,7 +93,7 @@ use std::path::Path;
 
 use num_complex::Complex64;
 
-use crate::atomic_file::{AtomicWriteError, write_atomic};
+use crate::atomic_file::{AtomicWriteError, OutputFile, write_atomic};
 use crate::material::{Library, MaterialModel};
 use crate::signal::fixed::{
     F32Section, F32State, Q15Section, Q15State, Q31Section, Q31State, f32_cascade, q15_cascade,
@@ -149,7 +149,7 @@ pub enum ExportError {
         tolerance_db: f64,
     },
     /// The header could not be written.
-    #[error("writing the header: {0}")]
+    #[error("writing the header")]
     Write(#[from] AtomicWriteError),
 }
 
@@ -333,6 +333,15 @@ pub fn export_library(
 /// [`ExportError::Write`].
 pub fn write(path: &Path, text: &str) -> Result<(), ExportError> {
     Ok(write_atomic(path, text.as_bytes())?)
+}
+
+/// Writes `text` to an output the caller checked against the output policy
+/// ([`crate::atomic_file`]; `-` is standard output there).
+///
+/// # Errors
+/// [`ExportError::Write`].
+pub fn write_to(out: &OutputFile, text: &str) -> Result<(), ExportError> {
+    Ok(out.write(text.as_bytes())?)
 }
 
 fn sha256_hex(bytes: &[u8]) -> String {

@@ -71,7 +71,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::atomic_file::{AtomicWriteError, write_atomic};
+use crate::atomic_file::{AtomicWriteError, OutputFile, write_atomic};
 use crate::fit::trf::{FnResiduals, TrfError, TrfOptions, least_squares_bounded};
 use crate::units::Newtons;
 
@@ -1091,6 +1091,16 @@ impl SensorCalibration {
     pub fn save(&self, path: &Path) -> Result<(), CalibrationError> {
         self.validate(&path.display().to_string())?;
         Ok(write_atomic(path, self.to_json().as_bytes())?)
+    }
+
+    /// [`SensorCalibration::save`] to an output the caller checked against the output
+    /// policy ([`crate::atomic_file`]) together with its inputs.
+    ///
+    /// # Errors
+    /// As [`SensorCalibration::save`].
+    pub fn save_to(&self, out: &OutputFile) -> Result<(), CalibrationError> {
+        self.validate(&out.path().display().to_string())?;
+        Ok(out.write(self.to_json().as_bytes())?)
     }
 }
 

@@ -47,7 +47,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use super::{MAX_SENSORS, SensorReading};
-use crate::atomic_file::{AtomicWriteError, write_atomic};
+use crate::atomic_file::{AtomicWriteError, OutputFile, write_atomic};
 use crate::limits::{MAX_TRACK_BYTES, MAX_TRACK_GAP, read_to_string_capped};
 use crate::units::Seconds;
 
@@ -444,6 +444,16 @@ impl ForceTrack {
     pub fn save(&self, path: &Path) -> Result<(), TrackError> {
         self.validate(&path.display().to_string())?;
         Ok(write_atomic(path, self.to_csv().as_bytes())?)
+    }
+
+    /// [`ForceTrack::save`] to an output the caller checked against the output policy
+    /// ([`crate::atomic_file`]) together with its other outputs and its inputs.
+    ///
+    /// # Errors
+    /// As [`ForceTrack::save`].
+    pub fn save_to(&self, out: &OutputFile) -> Result<(), TrackError> {
+        self.validate(&out.path().display().to_string())?;
+        Ok(out.write(self.to_csv().as_bytes())?)
     }
 
     /// The time from the first row to the last (zero for fewer than two rows).

@@ -6,9 +6,28 @@
 //! clamped to the format's range: +1.0 lands one step below full scale and anything
 //! beyond +-1 is clipped and counted in [`WavSummary::clipped_samples`].
 //!
-//! The file is written beside `path` under a temporary name and renamed over `path` only
-//! by [`WavSink::finish`], so a render that fails or is abandoned never destroys an
-//! existing file. Dropping an unfinished sink removes the temporary file.
+//! Every file goes through the output policy ([`crate::atomic_file`]): a device, FIFO,
+//! read-only file or an input of the command is refused, a symlink is written through.
+//! The file is written beside the (resolved) target under a temporary name and renamed
+//! over it only by [`WavSink::finish`], so a render that fails or is abandoned never
+//! destroys an existing file. Dropping an unfinished sink removes the temporary file.
+//!
+//! # Live recordings
+//!
+//! A session recorded by `run --output wav:` may last hours and end with a crash or a
+//! `SIGKILL`, so [`WavSink::live`] keeps the file valid on disk at every moment and at
+//! most [`LIVE_FLUSH_MAX`] behind. The temporary file replaces the target when the first
+//! block has been written (after every check of the session has passed and it has
+//! started: a session that fails to start leaves an existing file as it was); from
+//! then on the samples go into that same open file. At least once a second, from the
+//! thread that writes the samples (never the audio thread), the buffered samples are
+//! written, *then* the RIFF and data sizes in the header are updated to count them, then
+//! the file is flushed ([`WavSink::sync`]). So between two updates the file holds more
+//! sample bytes than its header counts, and a reader sees the audio up to the last
+//! update: valid, just shorter. (The bytes past the counted data are at the end of the
+//! file, where readers stop.) The data reach the kernel, which keeps them through a
+//! killed process; [`WavSink::finish`] also flushes them to the disk itself, against a
+//! power cut.
 //!
 //! ```
 //! use underfoot::io::wav::{WavFormat, WavSink};
@@ -28,9 +47,10 @@
 use std::fs::{self, File};
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
 
 use super::IoError;
+use crate::atomic_file::{AtomicWriteError, OutputFile};
 use crate::units::SampleRate;
 
 /// The sample encoding of the file.
@@ -79,6 +99,7 @@ const MAX_DATA_BYTES: u64 = u32::MAX as u64 - 4096;
 /// A WAV file being written; see the [module docs](self).
 pub struct WavSink {
     path: PathBuf,
+    out: OutputFile,
     temp: PathBuf,
     /// `None` once finished.
     writer: Option<hound::WavWriter<BufWriter<File>>>,
@@ -92,7 +113,19 @@ pub struct WavSink {
     failed: bool,
     /// The temporary file has become `path` and must not be removed.
     persisted: bool,
+    /// A live recording: periodic updates on disk.
+    live: Option<Live>,
 }
+
+/// When a live recording was last brought up to date on disk.
+#[derive(Debug, Clone, Copy)]
+struct Live {
+    every: Duration,
+    last: Instant,
+}
+
+/// The longest interval between two updates of a [live](WavSink::live) recording on disk.
+pub const LIVE_FLUSH_MAX: Duration = Duration::from_secs(1);
 
 impl std::fmt::Debug for WavSink {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -106,19 +139,65 @@ impl std::fmt::Debug for WavSink {
 }
 
 impl WavSink {
-    /// Starts a file that will become `path` when [finished](Self::finish).
+    /// Starts a file that will become `path` when [finished](Self::finish), under the
+    /// output policy of a command that reads nothing
+    /// ([`OutputFile::check`](crate::atomic_file::OutputFile::check)).
     ///
     /// # Errors
     /// - [`IoError::Unsupported`] for zero channels or a zero rate.
-    /// - [`IoError::Open`] naming `path` if the temporary file cannot be created beside it
-    ///   (missing directory, no permission).
+    /// - [`IoError::Open`] naming `path` if the policy refuses it (a device, a read-only
+    ///   file, ...) or the temporary file cannot be created beside it (missing directory,
+    ///   no permission).
     pub fn create(
         path: impl AsRef<Path>,
         rate: SampleRate,
         channels: u16,
         format: WavFormat,
     ) -> Result<Self, IoError> {
-        let path = path.as_ref().to_path_buf();
+        let path = path.as_ref();
+        let out = OutputFile::check(path, &[]).map_err(|e| open_error(path, &e))?;
+        Self::to_output(out, rate, channels, format)
+    }
+
+    /// Starts a file for an output already checked by the caller (with its inputs); it
+    /// replaces the target when [finished](Self::finish).
+    ///
+    /// # Errors
+    /// As [`create`](Self::create).
+    pub fn to_output(
+        out: OutputFile,
+        rate: SampleRate,
+        channels: u16,
+        format: WavFormat,
+    ) -> Result<Self, IoError> {
+        Self::start(out, rate, channels, format, None)
+    }
+
+    /// Starts a live recording (see the module docs, *Live recordings*): the file
+    /// replaces the target with the first block written and is brought up to date on
+    /// disk at least every `every` (at most [`LIVE_FLUSH_MAX`]) after that, so a
+    /// killed process leaves a valid WAV file that lacks at most that much audio.
+    ///
+    /// # Errors
+    /// As [`create`](Self::create).
+    pub fn live(
+        out: OutputFile,
+        rate: SampleRate,
+        channels: u16,
+        format: WavFormat,
+        every: Duration,
+    ) -> Result<Self, IoError> {
+        Self::start(out, rate, channels, format, Some(every.min(LIVE_FLUSH_MAX)))
+    }
+
+    fn start(
+        out: OutputFile,
+        rate: SampleRate,
+        channels: u16,
+        format: WavFormat,
+        live: Option<Duration>,
+    ) -> Result<Self, IoError> {
+        let path = out.path().to_path_buf();
         let unsupported = |reason: &str| IoError::Unsupported {
             device: path.display().to_string(),
             reason: reason.to_string(),
@@ -129,31 +208,7 @@ impl WavSink {
         if rate.0 == 0 {
             return Err(unsupported("a sample rate of 0 Hz"));
         }
-        let Some(file_name) = path.file_name() else {
-            return Err(unsupported("the path does not name a file"));
-        };
-
-        // Same directory as the target, so that the final rename stays on one file system
-        // and is atomic; pid and counter keep concurrent renders apart.
-        static COUNTER: AtomicU64 = AtomicU64::new(0);
-        let dir = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        let temp = dir.join(format!(
-            ".{}.tmp-{}-{}",
-            file_name.to_string_lossy(),
-            std::process::id(),
-            COUNTER.fetch_add(1, Ordering::Relaxed)
-        ));
-        let file = fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(&temp)
-            .map_err(|e| IoError::Open {
-                device: path.display().to_string(),
-                reason: format!("cannot create a temporary file in {}: {e}", dir.display()),
-            })?;
+        let (temp, file) = out.create_temporary().map_err(|e| open_error(&path, &e))?;
 
         let spec = hound::WavSpec {
             channels,
@@ -173,6 +228,7 @@ impl WavSink {
         };
         Ok(Self {
             path,
+            out,
             temp,
             writer: Some(writer),
             format,
@@ -183,6 +239,10 @@ impl WavSink {
             non_finite: 0,
             failed: false,
             persisted: false,
+            live: live.map(|every| Live {
+                every,
+                last: Instant::now(),
+            }),
         })
     }
 
@@ -243,6 +303,49 @@ impl WavSink {
             }
         }
         self.samples = total;
+        if let Some(live) = self.live
+            && (!self.persisted || live.last.elapsed() >= live.every)
+        {
+            self.sync()?;
+        }
+        Ok(())
+    }
+
+    /// Brings the file on disk up to date with everything written so far: a live
+    /// recording does this by itself, at least every [`LIVE_FLUSH_MAX`]. The first call
+    /// replaces the target (see the module docs, *Live recordings*).
+    ///
+    /// # Errors
+    /// [`IoError::Io`] naming the file; the sink is spoiled.
+    pub fn sync(&mut self) -> Result<(), IoError> {
+        let Some(writer) = self.writer.as_mut() else {
+            return Err(io_error(&self.path, "the file is already finished"));
+        };
+        // hound writes the buffered samples, then the RIFF and data sizes, then flushes:
+        // the header never counts a byte that is not in the file yet.
+        if let Err(e) = writer.flush() {
+            self.failed = true;
+            return Err(io_error(&self.path, e));
+        }
+        if !self.persisted {
+            let result = File::options()
+                .write(true)
+                .open(&self.temp)
+                .map_err(|e| io_error(&self.path, e))
+                .and_then(|f| {
+                    self.out
+                        .persist(&self.temp, &f)
+                        .map_err(|e| open_error(&self.path, &e))
+                });
+            if let Err(e) = result {
+                self.failed = true;
+                return Err(e);
+            }
+            self.persisted = true;
+        }
+        if let Some(live) = self.live.as_mut() {
+            live.last = Instant::now();
+        }
         Ok(())
     }
 
@@ -264,25 +367,23 @@ impl WavSink {
         }
         writer.finalize().map_err(|e| io_error(&self.path, e))?;
         // hound has flushed its buffer and closed the file; fsync through a new handle
-        // covers the same inode. Permissions of a file being replaced are kept.
+        // covers the same inode (already renamed, for a live recording that synced).
+        let on_disk = if self.persisted {
+            self.out.target().to_path_buf()
+        } else {
+            self.temp.clone()
+        };
         let file = File::options()
             .write(true)
-            .open(&self.temp)
+            .open(&on_disk)
             .map_err(|e| io_error(&self.path, e))?;
-        if let Ok(meta) = fs::metadata(&self.path) {
-            file.set_permissions(meta.permissions())
-                .map_err(|e| io_error(&self.path, e))?;
-        }
-        file.sync_all().map_err(|e| io_error(&self.path, e))?;
-        drop(file);
-        fs::rename(&self.temp, &self.path).map_err(|e| io_error(&self.path, e))?;
-        self.persisted = true;
-        // Makes the rename durable; the data is already safe, so a failure is not worth
-        // failing the render (and not every platform can open a directory).
-        if let Some(dir) = self.temp.parent()
-            && let Ok(d) = File::open(dir)
-        {
-            let _ = d.sync_all();
+        if self.persisted {
+            file.sync_all().map_err(|e| io_error(&self.path, e))?;
+        } else {
+            self.out
+                .persist(&self.temp, &file)
+                .map_err(|e| open_error(&self.path, &e))?;
+            self.persisted = true;
         }
         Ok(WavSummary {
             frames: self.samples / u64::from(self.channels),
@@ -307,6 +408,15 @@ impl Drop for WavSink {
         if !self.persisted {
             let _ = fs::remove_file(&self.temp);
         }
+        // A live recording that already replaced its target keeps what it has: hound's
+        // drop has just written the final sizes.
+    }
+}
+
+fn open_error(path: &Path, e: &AtomicWriteError) -> IoError {
+    IoError::Open {
+        device: path.display().to_string(),
+        reason: format!("{e}: {}", e.source),
     }
 }
 
@@ -475,6 +585,97 @@ mod tests {
         sink.finish().expect("finish");
         assert_eq!(read_back(&path).1, vec![0.5; 10]);
         assert_eq!(fs::read_dir(dir.path()).expect("dir").count(), 1);
+    }
+
+    #[test]
+    fn a_live_recording_is_a_valid_file_at_every_sync_and_after_a_kill() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("live.wav");
+        fs::write(&path, b"the previous session").expect("old file");
+        let out = OutputFile::check(&path, &[]).expect("check");
+        let mut sink = WavSink::live(
+            out,
+            SampleRate(8000),
+            2,
+            WavFormat::Float32,
+            Duration::from_secs(3600),
+        )
+        .expect("live");
+        // Nothing written yet: the old file is still there.
+        assert_eq!(fs::read(&path).expect("old"), b"the previous session");
+        // The first block replaces it, as a valid file holding that block.
+        sink.write_interleaved(&[0.25; 2 * 100]).expect("write");
+        assert_eq!(read_back(&path).1.len(), 200);
+        // Later blocks are on disk only from the next sync on, but the file stays valid
+        // in between: its header counts what was synced.
+        sink.write_interleaved(&[0.5; 2 * 5000]).expect("write");
+        assert_eq!(read_back(&path).1.len(), 200);
+        sink.sync().expect("sync");
+        let (_, y) = read_back(&path);
+        assert_eq!(y.len(), 2 * 5100);
+        assert_eq!(y[2 * 5100 - 1], 0.5);
+        // A kill: no finish, no drop.
+        sink.write_interleaved(&[0.75; 2 * 10]).expect("write");
+        std::mem::forget(sink);
+        assert_eq!(read_back(&path).1.len(), 2 * 5100);
+        assert_eq!(
+            fs::read_dir(dir.path()).expect("dir").count(),
+            1,
+            "a temporary is left"
+        );
+    }
+
+    #[test]
+    fn a_live_recording_syncs_by_itself_and_finishes_whole() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("live.wav");
+        let out = OutputFile::check(&path, &[]).expect("check");
+        let mut sink = WavSink::live(
+            out,
+            SampleRate(8000),
+            1,
+            WavFormat::Int16,
+            Duration::from_millis(10),
+        )
+        .expect("live");
+        sink.write_interleaved(&[0.5; 10]).expect("write");
+        std::thread::sleep(Duration::from_millis(20));
+        sink.write_interleaved(&[0.5; 30]).expect("write");
+        assert_eq!(
+            read_back(&path).1.len(),
+            40,
+            "not synced after the interval"
+        );
+        sink.write_interleaved(&[0.5; 7]).expect("write");
+        assert_eq!(sink.finish().expect("finish").frames, 47);
+        assert_eq!(read_back(&path).1.len(), 47);
+        assert_eq!(fs::read_dir(dir.path()).expect("dir").count(), 1);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn devices_and_read_only_files_are_refused_and_links_written_through() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().expect("tempdir");
+        let link = dir.path().join("null.wav");
+        std::os::unix::fs::symlink("/dev/null", &link).expect("link");
+        let err =
+            WavSink::create(&link, SampleRate(8000), 1, WavFormat::Float32).expect_err("a device");
+        assert!(err.to_string().contains("character device"), "{err}");
+        let ro = dir.path().join("ro.wav");
+        fs::write(&ro, b"keep").expect("file");
+        fs::set_permissions(&ro, fs::Permissions::from_mode(0o444)).expect("chmod");
+        assert!(WavSink::create(&ro, SampleRate(8000), 1, WavFormat::Float32).is_err());
+        assert_eq!(fs::read(&ro).expect("kept"), b"keep");
+        let real = dir.path().join("real.wav");
+        let to_real = dir.path().join("to-real.wav");
+        std::os::unix::fs::symlink("real.wav", &to_real).expect("link");
+        let mut sink =
+            WavSink::create(&to_real, SampleRate(8000), 1, WavFormat::Float32).expect("create");
+        sink.write_interleaved(&[0.5; 3]).expect("write");
+        sink.finish().expect("finish");
+        assert!(fs::symlink_metadata(&to_real).expect("link").is_symlink());
+        assert_eq!(read_back(&real).1, vec![0.5; 3]);
     }
 
     #[test]

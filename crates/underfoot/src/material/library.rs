@@ -62,7 +62,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use super::MaterialModel;
-use crate::atomic_file::{AtomicWriteError, write_atomic};
+use crate::atomic_file::{AtomicWriteError, OutputFile};
 
 /// The format tag of the library files this version reads and writes.
 pub const FORMAT: &str = "underfoot.library/2";
@@ -295,7 +295,50 @@ impl Library {
     pub fn save(&self, path: impl AsRef<Path>) -> Result<(), LibraryError> {
         let path = path.as_ref();
         self.validate_as(&format!("library to be saved to {}", path.display()))?;
-        Ok(write_atomic(path, self.to_json().as_bytes())?)
+        self.save_to(&OutputFile::check(path, &[])?)
+    }
+
+    /// Validates the library and writes it to an output the caller has already checked
+    /// against the output policy ([`crate::atomic_file`]), atomically as [`Library::save`].
+    ///
+    /// # Errors
+    /// As [`Library::save`].
+    pub fn save_to(&self, out: &OutputFile) -> Result<(), LibraryError> {
+        self.validate_as(&format!("library to be saved to {}", out.path().display()))?;
+        Ok(out.write(self.to_json().as_bytes())?)
+    }
+
+    /// Edits the library file `out` in place: read, `edit`, write, all under the file's
+    /// edit lock ([`OutputFile::lock`]), so concurrent edits by several processes all
+    /// land (each reads what the one before it wrote). With `create`, a missing file is
+    /// an empty library; without, it is an error. Nothing is written if `edit` fails.
+    ///
+    /// # Errors
+    /// [`LibraryError::Io`] for the lock, the errors of [`Library::load`] /
+    /// [`Library::load_or_new`], `edit`'s own, and those of [`Library::save_to`].
+    pub fn edit<T>(
+        out: &OutputFile,
+        create: bool,
+        edit: impl FnOnce(&mut Self) -> Result<T, LibraryError>,
+    ) -> Result<T, LibraryError> {
+        let _lock = out.lock()?;
+        // Read through the resolved target: the name the lock and the rename are for.
+        let mut library = if create {
+            Self::load_or_new(out.target())
+        } else {
+            Self::load(out.target())
+        }
+        .map_err(|e| match e {
+            LibraryError::Io { action, source, .. } => LibraryError::Io {
+                path: out.path().to_path_buf(),
+                action,
+                source,
+            },
+            e => e,
+        })?;
+        let value = edit(&mut library)?;
+        library.save_to(out)?;
+        Ok(value)
     }
 
     /// Inserts `model`, replacing (in place) a material of the same name.
@@ -1067,14 +1110,49 @@ mod tests {
         fs::create_dir(&target).expect("mkdir");
         fs::write(target.join("keep"), b"x").expect("write");
         match library(&["a"]).save(&target) {
+            // The output policy refuses a directory before anything is written.
             Err(LibraryError::Io { path, action, .. }) => {
                 assert_eq!(path, target);
-                assert!(action.contains("renaming"), "{action}");
+                assert_eq!(action, crate::atomic_file::REFUSED);
             }
             other => panic!("expected Io, got {other:?}"),
         }
         assert_eq!(dir_entries(dir.path()), ["lib.json"]);
         assert_eq!(fs::read(target.join("keep")).expect("kept"), b"x");
+    }
+
+    #[test]
+    fn concurrent_edits_all_land() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("lib.json");
+        let names = ["a", "b", "c", "d", "e", "f"];
+        std::thread::scope(|s| {
+            for name in names {
+                let path = &path;
+                s.spawn(move || {
+                    let out = OutputFile::check(path, &[]).expect("check");
+                    let model = library(&[name]).materials.remove(0);
+                    Library::edit(&out, true, |lib| {
+                        // Widen the window between the read and the write.
+                        std::thread::sleep(std::time::Duration::from_millis(20));
+                        Ok(lib.upsert(model))
+                    })
+                    .expect("edit");
+                });
+            }
+        });
+        let mut got = Library::load(&path).expect("load").names().join(",");
+        got = got
+            .split(',')
+            .collect::<std::collections::BTreeSet<_>>()
+            .into_iter()
+            .collect::<Vec<_>>()
+            .join(",");
+        assert_eq!(got, names.join(","));
+        // Without create, a missing library is an error and nothing is written.
+        let missing = OutputFile::check(&dir.path().join("none.json"), &[]).expect("check");
+        assert!(Library::edit(&missing, false, |_| Ok(())).is_err());
+        assert!(!dir.path().join("none.json").exists());
     }
 
     #[test]
