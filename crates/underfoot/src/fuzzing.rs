@@ -181,6 +181,62 @@ fn wav_bytes(rate: u32, format: u16, bits: u16, samples: &[f64]) -> Vec<u8> {
     out
 }
 
+/// A FLAC file: mono, 16 bits, blocks of 256 samples stored verbatim, with the frame
+/// checksums a decoder verifies (CRC-8 of each frame header, CRC-16 of each frame).
+fn flac_bytes(rate: u32, samples: &[f64]) -> Vec<u8> {
+    fn crc8(bytes: &[u8]) -> u8 {
+        bytes.iter().fold(0u8, |mut crc, &b| {
+            crc ^= b;
+            for _ in 0..8 {
+                crc = if crc & 0x80 != 0 {
+                    (crc << 1) ^ 0x07
+                } else {
+                    crc << 1
+                };
+            }
+            crc
+        })
+    }
+    fn crc16(bytes: &[u8]) -> u16 {
+        bytes.iter().fold(0u16, |mut crc, &b| {
+            crc ^= u16::from(b) << 8;
+            for _ in 0..8 {
+                crc = if crc & 0x8000 != 0 {
+                    (crc << 1) ^ 0x8005
+                } else {
+                    crc << 1
+                };
+            }
+            crc
+        })
+    }
+    const BLOCK: usize = 256;
+    let samples = &samples[..samples.len() / BLOCK * BLOCK];
+    let mut out = b"fLaC".to_vec();
+    // STREAMINFO, the last metadata block: 34 bytes.
+    out.extend_from_slice(&[0x80, 0, 0, 34]);
+    out.extend_from_slice(&(BLOCK as u16).to_be_bytes());
+    out.extend_from_slice(&(BLOCK as u16).to_be_bytes());
+    out.extend_from_slice(&[0; 6]); // frame sizes unknown
+    let packed = (u64::from(rate) << 44) | (0 << 41) | (15 << 36) | samples.len() as u64;
+    out.extend_from_slice(&packed.to_be_bytes());
+    out.extend_from_slice(&[0; 16]); // no MD5
+    for (n, block) in samples.chunks(BLOCK).enumerate() {
+        let start = out.len();
+        // Sync, fixed blocks; 256 samples, the stream's rate; mono, 16 bits; frame number.
+        out.extend_from_slice(&[0xFF, 0xF8, 0x80, 0x08]);
+        out.push(u8::try_from(n).expect("a seed has few frames"));
+        out.push(crc8(&out[start..]));
+        out.push(0x02); // a verbatim subframe
+        for &v in block {
+            out.extend_from_slice(&((v * 32_767.0) as i16).to_be_bytes());
+        }
+        let crc = crc16(&out[start..]);
+        out.extend_from_slice(&crc.to_be_bytes());
+    }
+    out
+}
+
 /// Two decaying 120 Hz strikes over a faint hiss: a recording the checks accept.
 fn strikes(rate: u32, len: usize) -> Vec<f64> {
     let mut noise = crate::signal::noise::SplitMix64::new(7);
@@ -200,6 +256,7 @@ fn seeds_audio() -> Vec<Vec<u8>> {
         wav_bytes(2000, 1, 16, &x),
         wav_bytes(2000, 1, 24, &x[..600]),
         wav_bytes(2000, 3, 32, &x[..600]),
+        flac_bytes(2000, &x),
     ]
 }
 

@@ -115,8 +115,30 @@ static ALLOCATOR: Counting = Counting;
 
 // ---- one input ----
 
+thread_local! {
+    /// The first panic on this thread since the last input began, caught or not: the
+    /// library turns a panic inside a decoder it uses into an error, and the harness must
+    /// still see it (libFuzzer's hook aborts on any panic, so cargo-fuzz does too).
+    static PANIC: std::cell::RefCell<Option<String>> = const { std::cell::RefCell::new(None) };
+}
+
+fn install_panic_hook() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            PANIC.with_borrow_mut(|p| {
+                p.get_or_insert_with(|| info.to_string());
+            });
+            previous(info);
+        }));
+    });
+}
+
 /// What went wrong with one input.
 fn check(target: &Target, data: &[u8]) -> Result<(), String> {
+    install_panic_hook();
+    PANIC.set(None);
     LIVE.set(0);
     PEAK.set(0);
     WATCHING.set(Some(target.name));
@@ -133,13 +155,21 @@ fn check(target: &Target, data: &[u8]) -> Result<(), String> {
             .unwrap_or("(no message)");
         return Err(format!("panic: {message}"));
     }
+    if let Some(caught) = PANIC.take() {
+        return Err(format!("a panic, caught inside the library: {caught}"));
+    }
+    let mut faults = Vec::new();
     if elapsed > TIME_LIMIT {
-        return Err(format!("took {elapsed:?} (limit {TIME_LIMIT:?})"));
+        faults.push(format!("took {elapsed:?} (limit {TIME_LIMIT:?})"));
     }
     if peak > PEAK_LIMIT {
-        return Err(format!("held {peak} bytes at once (limit {PEAK_LIMIT})"));
+        faults.push(format!("held {peak} bytes at once (limit {PEAK_LIMIT})"));
     }
-    Ok(())
+    if faults.is_empty() {
+        Ok(())
+    } else {
+        Err(faults.join("; "))
+    }
 }
 
 fn findings_dir(target: &str) -> PathBuf {
@@ -543,8 +573,74 @@ fn the_harness_catches_panics_slow_inputs_and_large_allocations() {
         },
         seeds: Vec::new,
     };
+    let caught = Target {
+        name: "caught",
+        run: |_| {
+            let _ = std::panic::catch_unwind(|| panic!("inside"));
+        },
+        seeds: Vec::new,
+    };
+    assert!(check(&caught, b"").unwrap_err().contains("inside"));
     assert!(check(&panics, b"").is_ok());
     assert!(check(&panics, b"x").unwrap_err().contains("boom"));
     assert!(check(&slow, b"").unwrap_err().contains("took"));
     assert!(check(&greedy, b"").unwrap_err().contains("held"));
+}
+
+/// The seeds are valid inputs of their formats, so that mutations start from something
+/// the parser accepts and reach past its first check.
+#[test]
+fn the_seeds_parse() {
+    use underfoot::compensation::files::{EqualizerFile, LimbFile, ResponseFile, from_json_str};
+    use underfoot::compensation::table::UserTable;
+    use underfoot::force::calibration::{SensorCalibration, session_from_csv_str};
+    use underfoot::force::gait::GaitConfig;
+    use underfoot::force::track::ForceTrack;
+    use underfoot::material::Library;
+    use underfoot::recording::{CsvSpec, read_bytes};
+    use underfoot::units::SampleRate;
+
+    let seeds = |name| (underfoot::fuzzing::target(name).expect("a target").seeds)();
+    let text = |b: &Vec<u8>| String::from_utf8(b.clone()).expect("a text seed is UTF-8");
+    for (i, seed) in seeds("audio").iter().enumerate() {
+        let rec = read_bytes("seed", seed, None);
+        assert!(rec.is_ok(), "audio seed {i}: {rec:?}");
+        assert_eq!(rec.unwrap().rate, SampleRate(2000), "audio seed {i}");
+    }
+    let spec = CsvSpec {
+        column: "1".into(),
+        rate: SampleRate(1000),
+    };
+    for seed in seeds("recording_csv") {
+        read_bytes("seed.csv", &seed, Some(&spec)).expect("a recording CSV seed");
+    }
+    for seed in seeds("library_json") {
+        Library::from_json(&text(&seed), "seed").expect("a library seed");
+    }
+    for seed in seeds("force_track") {
+        ForceTrack::from_csv_str(&text(&seed), "seed").expect("a track seed");
+    }
+    for seed in seeds("gait_spec") {
+        GaitConfig::from_spec(&text(&seed)).expect("a gait seed");
+    }
+    for seed in seeds("sensor_csv") {
+        let sensors = session_from_csv_str(&text(&seed), "seed").expect("a session seed");
+        assert_eq!(sensors.len(), 2);
+    }
+    let calibration = seeds("calibration_json").remove(0);
+    SensorCalibration::from_json_str(&text(&calibration), "seed").expect("a calibration seed");
+    for seed in seeds("interface_toml") {
+        underfoot::interface::config::InterfaceConfig::parse(
+            &text(&seed),
+            Path::new("seed.toml"),
+            |name| SensorCalibration::from_json_str(&text(&calibration), name),
+        )
+        .expect("an interface seed");
+    }
+    let compensation = seeds("compensation_json");
+    let path = Path::new("seed.json");
+    from_json_str::<ResponseFile>(&text(&compensation[0]), path).expect("a response seed");
+    from_json_str::<EqualizerFile>(&text(&compensation[1]), path).expect("an equalizer seed");
+    from_json_str::<LimbFile>(&text(&compensation[2]), path).expect("a limb seed");
+    UserTable::from_json_str(&text(&compensation[3]), path).expect("a table seed");
 }
