@@ -147,6 +147,9 @@ pub mod fit;
 #[cfg(feature = "std")]
 pub mod force;
 #[cfg(feature = "std")]
+#[doc(hidden)]
+pub mod fuzzing;
+#[cfg(feature = "std")]
 pub mod interface;
 #[cfg(feature = "std")]
 pub mod io;

@@ -46,8 +46,17 @@ fn file_error(path: &Path, reason: impl Into<String>) -> CompensationError {
 pub fn load<T: Document>(path: &Path) -> Result<T, CompensationError> {
     let text = crate::limits::read_to_string_capped(path, crate::limits::MAX_DOCUMENT_BYTES)
         .map_err(|e| file_error(path, e.to_string()))?;
+    from_json_str(&text, path)
+}
+
+/// Parses and checks a document of type `T` held in memory, as [`load`] does a file;
+/// `path` names it in errors.
+///
+/// # Errors
+/// As [`load`], except for reading.
+pub fn from_json_str<T: Document>(text: &str, path: &Path) -> Result<T, CompensationError> {
     let value: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| file_error(path, format!("not JSON: {e}")))?;
+        serde_json::from_str(text).map_err(|e| file_error(path, format!("not JSON: {e}")))?;
     let kind = value.get("kind").and_then(serde_json::Value::as_str);
     if kind != Some(T::KIND) {
         return Err(file_error(

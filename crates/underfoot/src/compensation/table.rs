@@ -206,6 +206,16 @@ impl UserTable {
         file.into_table()
     }
 
+    /// Parses and checks a table held in memory, as [`UserTable::load`] does a file;
+    /// `path` names it in errors.
+    ///
+    /// # Errors
+    /// As [`UserTable::load`], except for reading.
+    pub fn from_json_str(text: &str, path: &Path) -> Result<Self, CompensationError> {
+        let file: TableFile = files::from_json_str(text, path)?;
+        file.into_table()
+    }
+
     /// Writes the table to `path` atomically (a temporary file renamed over it).
     ///
     /// # Errors

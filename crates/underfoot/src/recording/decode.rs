@@ -30,10 +30,66 @@ use symphonia::core::formats::{FormatOptions, TrackType};
 use symphonia::core::io::{MediaSourceStream, MediaSourceStreamOptions};
 use symphonia::core::meta::MetadataOptions;
 
+/// The most channels a WAV header may declare. Symphonia computes the block size as a
+/// `u16` product of channels and bytes per sample, which overflows (a panic in a debug
+/// build) for a header declaring tens of thousands of channels; a footstep recording has
+/// a few.
+pub(crate) const MAX_WAV_CHANNELS: u16 = 64;
+
 /// Decodes an audio file held in memory to mono samples and its sample rate.
 ///
 /// `file` names the file in errors; its extension is passed to the probe as a hint.
+///
+/// Headers are checked here for what the decoder library is known to mishandle (see
+/// [`wav_header_fault`]); a panic inside it on anything else is still reported as a
+/// corrupt file rather than ending the program.
 pub(crate) fn decode_audio(
+    file: &Path,
+    bytes: &[u8],
+) -> Result<(SampleRate, Vec<f64>), RecordingError> {
+    let corrupt = |reason: String| RecordingError::Corrupt {
+        file: file.to_path_buf(),
+        reason,
+    };
+    if let Some(fault) = wav_header_fault(bytes) {
+        return Err(corrupt(fault));
+    }
+    std::panic::catch_unwind(|| decode_with_symphonia(file, bytes)).unwrap_or_else(|_| {
+        Err(corrupt(
+            "the audio decoder failed on this file (a fault in the decoder library)".into(),
+        ))
+    })
+}
+
+/// What is wrong with a RIFF/WAVE header that the decoder library does not check before
+/// using it: a `fmt ` chunk declaring no channels or more than [`MAX_WAV_CHANNELS`].
+/// `None` for anything else, including files that are not WAV.
+fn wav_header_fault(bytes: &[u8]) -> Option<String> {
+    if bytes.get(..4)? != b"RIFF" || bytes.get(8..12)? != b"WAVE" {
+        return None;
+    }
+    let mut at = 12usize;
+    while let Some(header) = bytes.get(at..at.checked_add(8)?) {
+        let size = u32::from_le_bytes(header[4..8].try_into().ok()?) as usize;
+        if &header[..4] == b"fmt " {
+            let channels = u16::from_le_bytes(bytes.get(at + 10..at + 12)?.try_into().ok()?);
+            if channels == 0 || channels > MAX_WAV_CHANNELS {
+                return Some(format!(
+                    "the WAV header declares {channels} channels (1 to {MAX_WAV_CHANNELS})"
+                ));
+            }
+            return None;
+        }
+        // Chunks are padded to an even length.
+        at = at
+            .checked_add(8)?
+            .checked_add(size)?
+            .checked_add(size & 1)?;
+    }
+    None
+}
+
+fn decode_with_symphonia(
     file: &Path,
     bytes: &[u8],
 ) -> Result<(SampleRate, Vec<f64>), RecordingError> {

@@ -1,0 +1,8 @@
+//! `underfoot::fuzzing`'s `calibration_json` target.
+#![no_main]
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| {
+    let target =
+        underfoot::fuzzing::target("calibration_json").expect("a target of underfoot::fuzzing");
+    (target.run)(data);
+});
