@@ -251,6 +251,17 @@ fn durations_rates_and_counts_are_bounded_when_parsed() {
             "0",
         ],
         &[
+            "render",
+            "--material",
+            "gravel",
+            "--gait",
+            "steps=1",
+            "--out",
+            "o.wav",
+            "--gain-db",
+            "1e308",
+        ],
+        &[
             "calibrate",
             "sweep",
             "--out",

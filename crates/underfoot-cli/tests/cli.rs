@@ -762,8 +762,10 @@ fn run_plays_a_walk_live_into_a_paced_wav() {
 
 #[test]
 fn run_rejects_bad_inputs_and_outputs_clearly() {
+    // A malformed spec is a usage error (status 2), refused while parsing (issue 14).
     let o = run(&["run", "--input", "tcp:1234", "--output", "null"]);
-    assert!(assert_error(&o).contains("unknown kind"));
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("unknown kind"));
     let o = run(&[
         "run",
         "--input",
@@ -773,7 +775,8 @@ fn run_rejects_bad_inputs_and_outputs_clearly() {
     ]);
     assert!(assert_error(&o).contains("/nonexistent.csv"));
     let o = run(&["run", "--input", "gait:steps=1", "--output", "speaker"]);
-    assert!(assert_error(&o).contains("speaker"));
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("speaker"));
     let o = run(&[
         "run",
         "--input",

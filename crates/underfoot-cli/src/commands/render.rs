@@ -1,7 +1,9 @@
 //! `underfoot render`: force in, a WAV file of vibration out, offline.
 //!
 //! The force comes from a CSV track (`--force`) or from the gait generator (`--gait`).
-//! The track's channel `k` drives output channel `k`. The real-time engine does the
+//! The track's channel `k` drives output channel `k`. Times count from the track's first
+//! reading (a logger's clock at 1700000000 s renders from frame 0), and a render is at
+//! most an hour of one channel (half an hour of two, ...), since it is held in memory. The real-time engine does the
 //! rendering, so a render is what a live session with the same input would play.
 //!
 //! # Outputs

@@ -26,6 +26,12 @@ fn parse_model(s: &str) -> Result<SynthModel, String> {
     }
 }
 
+/// A gain of -120 to +60 dB: beyond it a float gain overflows, and every sample is
+/// silenced as non-finite.
+fn parse_gain_db(s: &str) -> Result<f64, underfoot::io::spec::SpecError> {
+    underfoot::io::spec::parse_number(s, "gain (dB)", -120.0, 60.0)
+}
+
 /// Synthesis settings.
 #[derive(Debug, Clone, Args)]
 pub struct SynthArgs {
@@ -48,7 +54,8 @@ pub struct SynthArgs {
         long = "gain-db",
         default_value_t = 0.0,
         value_name = "DB",
-        allow_hyphen_values = true
+        allow_hyphen_values = true,
+        value_parser = parse_gain_db
     )]
     pub gain_db: f64,
     /// Limiter ceiling in dB relative to full scale (at most 0).

@@ -46,8 +46,8 @@
 //! used where a fit has a few physical parameters with bounds, such as the limb model of
 //! [`crate::compensation::limb`].
 //!
-//! **Bounded iterations.** Every iterative routine here stops: the SVDs run through
-//! [`svd`], which refuses a matrix with a non-finite entry (nalgebra's SVD iterates forever
+//! **Bounded iterations.** Every iterative routine here stops: the SVDs run through one
+//! crate-private `svd`, which refuses a matrix with a non-finite entry (nalgebra's SVD iterates forever
 //! on one) and caps the iterations; the eigenvalue solvers ([`roots`], [`vector_fit`]) cap
 //! theirs; the refinements and [`trf`] cap their steps.
 pub mod crumpling;

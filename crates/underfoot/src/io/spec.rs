@@ -11,7 +11,7 @@
 //! | [`InputSpec`] | `replay:FILE[@SPEED]`, `gait:SPEC`, `serial:PORT`, `osc:HOST:PORT` | speed [`MIN_SPEED`]..=[`MAX_SPEED`]; gait keys as [`GaitConfig::validate`] |
 //! | [`OutputSpec`] | `audio[:DEVICE]`, `wav:FILE`, `null` | |
 //! | [`Band`] | `LO:HI` (or `LO,HI`) in Hz | [`MIN_BAND_EDGE`] <= LO < HI <= [`MAX_BAND_EDGE`] |
-//! | [`parse_seconds`] | seconds | finite, in the caller's range |
+//! | [`parse_seconds`], [`parse_number`] | seconds, a number | finite, in the caller's range |
 //! | [`parse_session_duration`] | seconds | 0..=[`MAX_SESSION`] |
 //! | [`parse_rate`] | whole Hz | in the caller's range |
 //! | [`parse_count`] | a whole number | in the caller's range |
@@ -274,6 +274,22 @@ pub fn parse_seconds(s: &str, what: &'static str, lo: f64, hi: f64) -> Result<Se
     }
 }
 
+/// A finite number within `lo..=hi` (a level in dB, a gain); `what` names it, with its
+/// unit, in errors.
+///
+/// # Errors
+/// [`SpecError::Invalid`] naming the text and the range.
+pub fn parse_number(s: &str, what: &'static str, lo: f64, hi: f64) -> Result<f64, SpecError> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if (lo..=hi).contains(&v) => Ok(v),
+        _ => Err(invalid(
+            what,
+            s,
+            format!("expected a number from {lo} to {hi}"),
+        )),
+    }
+}
+
 /// The length of a live session: seconds from 0 to [`MAX_SESSION`] (30 days).
 ///
 /// # Errors
@@ -510,6 +526,9 @@ mod tests {
                 }
                 if let Ok(c) = parse_count(&s, "count", 1, 64) {
                     prop_assert!((1..=64).contains(&c));
+                }
+                if let Ok(v) = parse_number(&s, "gain", -120.0, 60.0) {
+                    prop_assert!((-120.0..=60.0).contains(&v));
                 }
                 if let Ok(v) = parse_speed(&s) {
                     prop_assert!((MIN_SPEED..=MAX_SPEED).contains(&v));
