@@ -48,10 +48,13 @@
 //! nobody else will ever contend for and reads a file that is already stale.
 //! [`OutputFile::lock`] therefore locks a separate, never-renamed lock file next to the
 //! resolved target (`.NAME.lock`, an advisory `flock` through `fs4`), and the caller
-//! reads, edits and writes while it holds the [`EditLock`]. The lock file is never
-//! deleted: deleting it would bring back the same two-inode race. Links to one file
-//! share one lock because the lock sits next to the resolved target. Only cooperating
-//! processes (this crate) are kept out; an editor is not.
+//! reads, edits and writes while it holds the [`EditLock`]. So that no lock file is left
+//! beside the user's library, the holder removes it *while still holding the lock*; a
+//! process that was waiting on the removed inode then finds, once it gets the lock,
+//! that the name no longer leads to the inode it locked (device and inode compared), and
+//! starts again with a new file. Links to one file share one lock because the lock sits
+//! next to the resolved target. Only cooperating processes (this crate) are kept out; an
+//! editor is not.
 
 use std::fs::{self, File};
 use std::io::Write;
@@ -362,23 +365,45 @@ impl OutputFile {
         let target = self.target();
         let name = target.file_name().unwrap_or_default().to_string_lossy();
         let path = parent_dir(target).join(format!(".{name}.lock"));
-        let file = fs::OpenOptions::new()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(false)
-            .open(&path)
-            .map_err(io(&path, "creating the lock file"))?;
-        fs4::FileExt::lock(&file).map_err(io(&path, "locking"))?;
-        Ok(EditLock { _file: file })
+        loop {
+            let file = fs::OpenOptions::new()
+                .read(true)
+                .write(true)
+                .create(true)
+                .truncate(false)
+                .open(&path)
+                .map_err(io(&path, "creating the lock file"))?;
+            fs4::FileExt::lock(&file).map_err(io(&path, "locking"))?;
+            // The holder before us may have removed the file while we waited on it:
+            // the lock counts only if the name still leads to the inode we locked.
+            let held = file.metadata().map_err(io(&path, "locking"))?;
+            match fs::metadata(&path) {
+                Ok(now) if identity(&now) == identity(&held) => {
+                    return Ok(EditLock { file, path });
+                }
+                _ => {}
+            }
+        }
     }
 }
 
 /// The edit lock of an [`OutputFile`], released when dropped.
 #[derive(Debug)]
 pub struct EditLock {
-    // flock is released when the descriptor closes.
-    _file: File,
+    file: File,
+    path: PathBuf,
+}
+
+impl Drop for EditLock {
+    fn drop(&mut self) {
+        // Removed while still locked, so no one can lock this inode and believe it
+        // current (see `OutputFile::lock`); the flock goes with the descriptor. Where
+        // file identities are not available the file stays, which is always safe.
+        if cfg!(unix) {
+            let _ = fs::remove_file(&self.path);
+        }
+        let _ = fs4::FileExt::unlock(&self.file);
+    }
 }
 
 /// Writes `contents` to `path` under the output policy of a command that reads nothing:
@@ -714,6 +739,26 @@ mod tests {
             "a second lock got in"
         );
         drop(held);
+        // Released, and the lock file is gone with it.
         assert!(fs4::FileExt::try_lock(&other).is_ok());
+        assert!(!lock_file.exists());
+        drop(other);
+        // Many holders in turn, some waiting on a file the one before removed.
+        let count = std::sync::atomic::AtomicUsize::new(0);
+        let inside = std::sync::atomic::AtomicUsize::new(0);
+        std::thread::scope(|s| {
+            for _ in 0..8 {
+                s.spawn(|| {
+                    for _ in 0..20 {
+                        let _held = out.lock().unwrap();
+                        assert_eq!(inside.fetch_add(1, Ordering::SeqCst), 0, "two holders");
+                        count.fetch_add(1, Ordering::SeqCst);
+                        inside.fetch_sub(1, Ordering::SeqCst);
+                    }
+                });
+            }
+        });
+        assert_eq!(count.load(Ordering::SeqCst), 160);
+        assert!(!lock_file.exists());
     }
 }
