@@ -150,6 +150,16 @@ impl OutputFile {
                 "the path does not name a file".into(),
             ));
         }
+        // A missing folder would only show when the temporary file is created, after
+        // the command's work: say so now.
+        let dir = parent_dir(&target);
+        if !dir.is_dir() {
+            return Err(refuse(
+                path,
+                std::io::ErrorKind::NotFound,
+                format!("the folder {} does not exist", dir.display()),
+            ));
+        }
         check_kind(path, &target)?;
         check_not_input(path, &target, inputs)?;
         Ok(Self {
@@ -338,19 +348,36 @@ impl OutputFile {
     /// [`AtomicWriteError`] naming the step that failed, or a refusal if the target has
     /// become something the policy refuses since the check.
     pub fn persist(&self, tmp: &Path, file: &File) -> Result<(), AtomicWriteError> {
+        self.persist_with(tmp, file, true)
+    }
+
+    /// [`persist`](Self::persist) without waiting for the disk: for a live recording,
+    /// whose writer thread must keep pace with a device clock (an `fsync` on a busy disk
+    /// can take longer than a buffer). The data are in the kernel, safe from a killed
+    /// process; the writer flushes them to disk when it finishes.
+    ///
+    /// # Errors
+    /// As [`persist`](Self::persist).
+    pub fn persist_unsynced(&self, tmp: &Path, file: &File) -> Result<(), AtomicWriteError> {
+        self.persist_with(tmp, file, false)
+    }
+
+    fn persist_with(&self, tmp: &Path, file: &File, sync: bool) -> Result<(), AtomicWriteError> {
         let target = self.target();
         if let Ok(meta) = fs::metadata(target) {
             file.set_permissions(meta.permissions())
                 .map_err(io(tmp, "copying permissions to the temporary file"))?;
         }
-        file.sync_all()
-            .map_err(io(tmp, "flushing the temporary file to disk"))?;
+        if sync {
+            file.sync_all()
+                .map_err(io(tmp, "flushing the temporary file to disk"))?;
+        }
         // Once more just before the rename: the check may have been minutes ago (a fit).
         check_kind(&self.given, target)?;
         fs::rename(tmp, target).map_err(io(&self.given, "renaming the temporary file over it"))?;
         // Make the rename itself durable. Not every platform can open a directory; the
         // data is already safe in the file, so a failure here is not worth failing the save.
-        if let Ok(d) = File::open(parent_dir(target)) {
+        if sync && let Ok(d) = File::open(parent_dir(target)) {
             let _ = d.sync_all();
         }
         Ok(())
@@ -595,9 +622,24 @@ mod tests {
     }
 
     #[test]
+    fn a_missing_folder_is_refused_at_the_check() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = OutputFile::check(&dir.path().join("missing/a.json"), &[]).expect_err("no folder");
+        assert!(
+            e.is_refusal() && full(&e).contains("does not exist"),
+            "{}",
+            full(&e)
+        );
+    }
+
+    #[test]
     fn a_failed_write_keeps_the_old_file_and_names_the_step() {
         let dir = tempfile::tempdir().unwrap();
-        let e = write_atomic(&dir.path().join("missing/a.json"), b"new").expect_err("no folder");
+        let sub = dir.path().join("sub");
+        fs::create_dir(&sub).unwrap();
+        let out = OutputFile::check(&sub.join("a.json"), &[]).unwrap();
+        fs::remove_dir(&sub).unwrap();
+        let e = out.write(b"new").expect_err("the folder went away");
         assert_eq!(e.action, "creating a temporary file");
     }
 
