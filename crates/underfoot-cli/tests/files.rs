@@ -169,8 +169,11 @@ fn is_still_special(p: &Path) -> bool {
 fn no_output_replaces_a_device_a_fifo_or_a_link_to_a_device() {
     let dir = tempfile::tempdir().expect("tempdir");
     let (lib, _) = library_file(dir.path());
-    let rec = dir.path().join("rec.wav");
+    let recs = dir.path().join("recs");
+    fs::create_dir(&recs).expect("mkdir");
+    let rec = recs.join("rec.wav");
     write_recording(&rec, 1);
+    let pair = format!("x={}", s(&recs));
     for (target, kind) in special_files(dir.path()) {
         let t = s(&target);
         let wav = format!("wav:{t}");
@@ -203,6 +206,18 @@ fn no_output_replaces_a_device_a_fifo_or_a_link_to_a_device() {
                 t,
                 "--materials",
                 "gravel",
+            ],
+            vec!["compare", "--json", t, &pair],
+            vec!["calibrate", "sensors", "--readings", s(&rec), "--out", t],
+            vec![
+                "eq-table",
+                "add",
+                "--user",
+                s(&rec),
+                "--eq",
+                s(&rec),
+                "--table",
+                t,
             ],
         ];
         for args in cases {

@@ -48,10 +48,13 @@
 //! nobody else will ever contend for and reads a file that is already stale.
 //! [`OutputFile::lock`] therefore locks a separate, never-renamed lock file next to the
 //! resolved target (`.NAME.lock`, an advisory `flock` through `fs4`), and the caller
-//! reads, edits and writes while it holds the [`EditLock`]. The lock file is never
-//! deleted: deleting it would bring back the same two-inode race. Links to one file
-//! share one lock because the lock sits next to the resolved target. Only cooperating
-//! processes (this crate) are kept out; an editor is not.
+//! reads, edits and writes while it holds the [`EditLock`]. So that no lock file is left
+//! beside the user's library, the holder removes it *while still holding the lock*; a
+//! process that was waiting on the removed inode then finds, once it gets the lock,
+//! that the name no longer leads to the inode it locked (device and inode compared), and
+//! starts again with a new file. Links to one file share one lock because the lock sits
+//! next to the resolved target. Only cooperating processes (this crate) are kept out; an
+//! editor is not.
 
 use std::fs::{self, File};
 use std::io::Write;
@@ -145,6 +148,16 @@ impl OutputFile {
                 path,
                 std::io::ErrorKind::InvalidInput,
                 "the path does not name a file".into(),
+            ));
+        }
+        // A missing folder would only show when the temporary file is created, after
+        // the command's work: say so now.
+        let dir = parent_dir(&target);
+        if !dir.is_dir() {
+            return Err(refuse(
+                path,
+                std::io::ErrorKind::NotFound,
+                format!("the folder {} does not exist", dir.display()),
             ));
         }
         check_kind(path, &target)?;
@@ -335,19 +348,36 @@ impl OutputFile {
     /// [`AtomicWriteError`] naming the step that failed, or a refusal if the target has
     /// become something the policy refuses since the check.
     pub fn persist(&self, tmp: &Path, file: &File) -> Result<(), AtomicWriteError> {
+        self.persist_with(tmp, file, true)
+    }
+
+    /// [`persist`](Self::persist) without waiting for the disk: for a live recording,
+    /// whose writer thread must keep pace with a device clock (an `fsync` on a busy disk
+    /// can take longer than a buffer). The data are in the kernel, safe from a killed
+    /// process; the writer flushes them to disk when it finishes.
+    ///
+    /// # Errors
+    /// As [`persist`](Self::persist).
+    pub fn persist_unsynced(&self, tmp: &Path, file: &File) -> Result<(), AtomicWriteError> {
+        self.persist_with(tmp, file, false)
+    }
+
+    fn persist_with(&self, tmp: &Path, file: &File, sync: bool) -> Result<(), AtomicWriteError> {
         let target = self.target();
         if let Ok(meta) = fs::metadata(target) {
             file.set_permissions(meta.permissions())
                 .map_err(io(tmp, "copying permissions to the temporary file"))?;
         }
-        file.sync_all()
-            .map_err(io(tmp, "flushing the temporary file to disk"))?;
+        if sync {
+            file.sync_all()
+                .map_err(io(tmp, "flushing the temporary file to disk"))?;
+        }
         // Once more just before the rename: the check may have been minutes ago (a fit).
         check_kind(&self.given, target)?;
         fs::rename(tmp, target).map_err(io(&self.given, "renaming the temporary file over it"))?;
         // Make the rename itself durable. Not every platform can open a directory; the
         // data is already safe in the file, so a failure here is not worth failing the save.
-        if let Ok(d) = File::open(parent_dir(target)) {
+        if sync && let Ok(d) = File::open(parent_dir(target)) {
             let _ = d.sync_all();
         }
         Ok(())
@@ -362,23 +392,45 @@ impl OutputFile {
         let target = self.target();
         let name = target.file_name().unwrap_or_default().to_string_lossy();
         let path = parent_dir(target).join(format!(".{name}.lock"));
-        let file = fs::OpenOptions::new()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(false)
-            .open(&path)
-            .map_err(io(&path, "creating the lock file"))?;
-        fs4::FileExt::lock(&file).map_err(io(&path, "locking"))?;
-        Ok(EditLock { _file: file })
+        loop {
+            let file = fs::OpenOptions::new()
+                .read(true)
+                .write(true)
+                .create(true)
+                .truncate(false)
+                .open(&path)
+                .map_err(io(&path, "creating the lock file"))?;
+            fs4::FileExt::lock(&file).map_err(io(&path, "locking"))?;
+            // The holder before us may have removed the file while we waited on it:
+            // the lock counts only if the name still leads to the inode we locked.
+            let held = file.metadata().map_err(io(&path, "locking"))?;
+            match fs::metadata(&path) {
+                Ok(now) if identity(&now) == identity(&held) => {
+                    return Ok(EditLock { file, path });
+                }
+                _ => {}
+            }
+        }
     }
 }
 
 /// The edit lock of an [`OutputFile`], released when dropped.
 #[derive(Debug)]
 pub struct EditLock {
-    // flock is released when the descriptor closes.
-    _file: File,
+    file: File,
+    path: PathBuf,
+}
+
+impl Drop for EditLock {
+    fn drop(&mut self) {
+        // Removed while still locked, so no one can lock this inode and believe it
+        // current (see `OutputFile::lock`); the flock goes with the descriptor. Where
+        // file identities are not available the file stays, which is always safe.
+        if cfg!(unix) {
+            let _ = fs::remove_file(&self.path);
+        }
+        let _ = fs4::FileExt::unlock(&self.file);
+    }
 }
 
 /// Writes `contents` to `path` under the output policy of a command that reads nothing:
@@ -570,9 +622,24 @@ mod tests {
     }
 
     #[test]
+    fn a_missing_folder_is_refused_at_the_check() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = OutputFile::check(&dir.path().join("missing/a.json"), &[]).expect_err("no folder");
+        assert!(
+            e.is_refusal() && full(&e).contains("does not exist"),
+            "{}",
+            full(&e)
+        );
+    }
+
+    #[test]
     fn a_failed_write_keeps_the_old_file_and_names_the_step() {
         let dir = tempfile::tempdir().unwrap();
-        let e = write_atomic(&dir.path().join("missing/a.json"), b"new").expect_err("no folder");
+        let sub = dir.path().join("sub");
+        fs::create_dir(&sub).unwrap();
+        let out = OutputFile::check(&sub.join("a.json"), &[]).unwrap();
+        fs::remove_dir(&sub).unwrap();
+        let e = out.write(b"new").expect_err("the folder went away");
         assert_eq!(e.action, "creating a temporary file");
     }
 
@@ -714,6 +781,26 @@ mod tests {
             "a second lock got in"
         );
         drop(held);
+        // Released, and the lock file is gone with it.
         assert!(fs4::FileExt::try_lock(&other).is_ok());
+        assert!(!lock_file.exists());
+        drop(other);
+        // Many holders in turn, some waiting on a file the one before removed.
+        let count = std::sync::atomic::AtomicUsize::new(0);
+        let inside = std::sync::atomic::AtomicUsize::new(0);
+        std::thread::scope(|s| {
+            for _ in 0..8 {
+                s.spawn(|| {
+                    for _ in 0..20 {
+                        let _held = out.lock().unwrap();
+                        assert_eq!(inside.fetch_add(1, Ordering::SeqCst), 0, "two holders");
+                        count.fetch_add(1, Ordering::SeqCst);
+                        inside.fetch_sub(1, Ordering::SeqCst);
+                    }
+                });
+            }
+        });
+        assert_eq!(count.load(Ordering::SeqCst), 160);
+        assert!(!lock_file.exists());
     }
 }

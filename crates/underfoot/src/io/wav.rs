@@ -334,7 +334,7 @@ impl WavSink {
                 .map_err(|e| io_error(&self.path, e))
                 .and_then(|f| {
                     self.out
-                        .persist(&self.temp, &f)
+                        .persist_unsynced(&self.temp, &f)
                         .map_err(|e| open_error(&self.path, &e))
                 });
             if let Err(e) = result {
