@@ -96,8 +96,7 @@ fn render_with_user_compensation_is_silent_within_100_ms_of_the_last_reading() {
         let text = std::fs::read_to_string(&csv).expect("force csv");
         let last_time: f64 = text
             .lines()
-            .filter(|l| !l.trim().is_empty())
-            .last()
+            .rfind(|l| !l.trim().is_empty())
             .and_then(|l| l.split(',').next())
             .and_then(|t| t.trim().parse().ok())
             .expect("last row's time");
