@@ -110,6 +110,11 @@ fn silent_after_cut(model: SynthModel, material: &str, drive: &str, with_eq: boo
     );
     let deadline = last as usize + RATE.samples_in(Seconds(0.1));
     let last_loud = out.samples.iter().rposition(|v| *v != 0.0).unwrap_or(0);
+    eprintln!(
+        "{model:?} {material} ({drive}, eq {with_eq}): last non-zero sample {:.1} ms after \
+         the last reading",
+        (last_loud as f64 - last as f64) / RATE.hz() * 1000.0
+    );
     assert!(
         last_loud < deadline,
         "{model:?} {material} ({drive}, eq {with_eq}): the last non-zero sample is {:.1} ms \
@@ -182,6 +187,10 @@ fn one_osc_step_is_silent_within_100_ms_after_its_window() {
         );
         let deadline = RATE.samples_in(Seconds(STEP_WINDOW.0 + 0.1));
         let last_loud = out.iter().rposition(|v| *v != 0.0).unwrap_or(0);
+        eprintln!(
+            "{model:?} (compensated {compensated}): last non-zero sample {:.1} ms after one step",
+            last_loud as f64 / RATE.hz() * 1000.0
+        );
         assert!(
             last_loud < deadline,
             "{model:?} (compensated {compensated}): non-zero until {:.0} ms after one step \
