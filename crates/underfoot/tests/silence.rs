@@ -322,3 +322,24 @@ fn integer_wav_never_passes_the_ceiling() {
         assert_eq!(f64::from(peak), limit.floor(), "{format:?}");
     }
 }
+
+/// The IIR voice's decay cap has no "unlimited": an infinite, zero or absurd limit is
+/// refused when the material is prepared, instead of letting a pole at the edge of
+/// stability ring for hours.
+#[test]
+fn the_voice_refuses_an_unbounded_decay_limit() {
+    let model = builtin().get("metal").unwrap();
+    for bad in [f64::INFINITY, f64::NAN, 0.0, -1.0, 1e6] {
+        let config = VoiceConfig {
+            longest_decay: Seconds(bad),
+            ..VoiceConfig::default()
+        };
+        let err = underfoot::synthesis::PreparedMaterial::prepare(model, RATE, &config);
+        assert!(err.is_err(), "longest_decay {bad} was accepted");
+    }
+    let fine = VoiceConfig {
+        longest_decay: Seconds(2.0),
+        ..VoiceConfig::default()
+    };
+    assert!(underfoot::synthesis::PreparedMaterial::prepare(model, RATE, &fine).is_ok());
+}
