@@ -57,6 +57,7 @@ fn render_in_integer_formats_never_writes_a_code_past_the_ceiling() {
         let (_, v) = codes(&out);
         let peak = v.iter().map(|c| c.unsigned_abs()).max().unwrap_or(0);
         let limit = ceiling * full;
+        eprintln!("{format}: loudest code {peak}, ceiling {limit:.2}");
         assert!(
             f64::from(peak) <= limit,
             "{format}: code {peak} against a ceiling of {limit:.1}"
@@ -96,8 +97,7 @@ fn render_with_user_compensation_is_silent_within_100_ms_of_the_last_reading() {
         let text = std::fs::read_to_string(&csv).expect("force csv");
         let last_time: f64 = text
             .lines()
-            .filter(|l| !l.trim().is_empty())
-            .last()
+            .rfind(|l| !l.trim().is_empty())
             .and_then(|l| l.split(',').next())
             .and_then(|t| t.trim().parse().ok())
             .expect("last row's time");
@@ -107,6 +107,10 @@ fn render_with_user_compensation_is_silent_within_100_ms_of_the_last_reading() {
         assert!(v.iter().any(|x| x.abs() > 1e-4), "{model}: sound");
         let last_loud = v.iter().rposition(|x| *x != 0.0).unwrap_or(0);
         let after = last_loud as f64 / rate - last_time;
+        eprintln!(
+            "{model}: last non-zero sample {:.1} ms after the last reading",
+            after * 1000.0
+        );
         assert!(
             after < 0.1,
             "{model}: the last non-zero sample is {:.1} ms after the last reading",

@@ -110,6 +110,11 @@ fn silent_after_cut(model: SynthModel, material: &str, drive: &str, with_eq: boo
     );
     let deadline = last as usize + RATE.samples_in(Seconds(0.1));
     let last_loud = out.samples.iter().rposition(|v| *v != 0.0).unwrap_or(0);
+    eprintln!(
+        "{model:?} {material} ({drive}, eq {with_eq}): last non-zero sample {:.1} ms after \
+         the last reading",
+        (last_loud as f64 - last as f64) / RATE.hz() * 1000.0
+    );
     assert!(
         last_loud < deadline,
         "{model:?} {material} ({drive}, eq {with_eq}): the last non-zero sample is {:.1} ms \
@@ -182,6 +187,10 @@ fn one_osc_step_is_silent_within_100_ms_after_its_window() {
         );
         let deadline = RATE.samples_in(Seconds(STEP_WINDOW.0 + 0.1));
         let last_loud = out.iter().rposition(|v| *v != 0.0).unwrap_or(0);
+        eprintln!(
+            "{model:?} (compensated {compensated}): last non-zero sample {:.1} ms after one step",
+            last_loud as f64 / RATE.hz() * 1000.0
+        );
         assert!(
             last_loud < deadline,
             "{model:?} (compensated {compensated}): non-zero until {:.0} ms after one step \
@@ -312,4 +321,25 @@ fn integer_wav_never_passes_the_ceiling() {
         );
         assert_eq!(f64::from(peak), limit.floor(), "{format:?}");
     }
+}
+
+/// The IIR voice's decay cap has no "unlimited": an infinite, zero or absurd limit is
+/// refused when the material is prepared, instead of letting a pole at the edge of
+/// stability ring for hours.
+#[test]
+fn the_voice_refuses_an_unbounded_decay_limit() {
+    let model = builtin().get("metal").unwrap();
+    for bad in [f64::INFINITY, f64::NAN, 0.0, -1.0, 1e6] {
+        let config = VoiceConfig {
+            longest_decay: Seconds(bad),
+            ..VoiceConfig::default()
+        };
+        let err = underfoot::synthesis::PreparedMaterial::prepare(model, RATE, &config);
+        assert!(err.is_err(), "longest_decay {bad} was accepted");
+    }
+    let fine = VoiceConfig {
+        longest_decay: Seconds(2.0),
+        ..VoiceConfig::default()
+    };
+    assert!(underfoot::synthesis::PreparedMaterial::prepare(model, RATE, &fine).is_ok());
 }

@@ -729,7 +729,15 @@ impl Engine {
                 let len = (n - start).min(channel_buf.len());
                 let buf = &mut channel_buf[..len];
                 resets += channel.render(buf);
-                resets += stage.process(buf, &fade[start..start + len], &mut report);
+                // A channel that is not played runs its stage to keep it in time, but
+                // what its limiter does is nobody's concern.
+                let mut unplayed = LimiterReport::default();
+                let counted = if c < device_channels {
+                    &mut report
+                } else {
+                    &mut unplayed
+                };
+                resets += stage.process(buf, &fade[start..start + len], counted);
                 if c < device_channels {
                     for (i, v) in buf.iter().enumerate() {
                         self.peak = self.peak.max(v.abs());

@@ -103,7 +103,7 @@ use super::IoError;
 use crate::compensation::CompensationError;
 use crate::compensation::sweep::Device;
 use crate::safety::{Limiter, LimiterReport};
-use crate::units::{SampleRate, Seconds};
+use crate::units::{Decibels, SampleRate, Seconds};
 
 /// The device's sample format, as cpal names it.
 pub use cpal::SampleFormat;

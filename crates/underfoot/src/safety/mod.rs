@@ -378,6 +378,85 @@ mod tests {
     }
 
     #[test]
+    fn quantisation_never_rounds_a_magnitude_up() {
+        let mut rng = SplitMix64::new(3);
+        for bits in [8, 16, 24, 32] {
+            let full = f64::from(1u32 << (bits - 1));
+            for _ in 0..20_000 {
+                let x = (rng.symmetric() * 1.2) as f32;
+                let q = f64::from(quantize(x, bits));
+                assert!(q.abs() <= (f64::from(x) * full).abs(), "{bits}: {x} -> {q}");
+                assert!((-full..full).contains(&q), "{bits}: {x} -> {q}");
+                if x.abs() < 1.0 {
+                    assert!((f64::from(x) * full - q).abs() < 1.0, "{bits}: {x} -> {q}");
+                }
+            }
+        }
+        // The -6 dB ceiling: 16422.9 codes, written 16422 (rounded, it was 16423).
+        let c = Decibels(-6.0).to_amplitude() as f32;
+        assert_eq!(quantize(c, 16), 16_422);
+        assert_eq!(quantize(-c, 16), -16_422);
+        assert_eq!(quantize(1.0, 16), 32_767);
+        assert_eq!(quantize(-1.0, 24), -(1 << 23));
+        assert_eq!(quantize(f32::NAN, 16), 0);
+        assert_eq!(quantize(f32::INFINITY, 32), i32::MAX);
+        assert_eq!(quantize(f32::NEG_INFINITY, 32), i32::MIN);
+    }
+
+    /// Whatever the compensation still rings with, a channel whose watchdog has faded
+    /// out is exactly zero; the ceiling holds on what does come out.
+    #[test]
+    fn the_output_stage_silences_after_the_compensation() {
+        use crate::compensation::chain::Compensation;
+        use crate::signal::{Biquad, Sos};
+        let rate = SampleRate(48_000);
+        // A limb filter that rings for seconds.
+        let r = 0.99999;
+        let w: f64 = 0.02;
+        let limb = Sos::new(vec![Biquad {
+            b: [1.0, 0.0, 0.0],
+            a: [1.0, -2.0 * r * w.cos(), r * r],
+        }]);
+        let chain = CompensationChain::new(
+            &Compensation {
+                equalizer: None,
+                limb: Some(limb),
+            },
+            rate,
+            64,
+        )
+        .unwrap();
+        let mut stage = OutputStage::new(
+            Some(chain),
+            &WatchdogConfig::default(),
+            Decibels(-6.0),
+            Seconds(0.05),
+            rate,
+        );
+        let gain = [1.0f32; 64];
+        let mut report = LimiterReport::default();
+        let mut out = Vec::new();
+        for block in 0..200 {
+            if block < 10 {
+                stage.feed();
+            }
+            let mut buf = [0.0f32; 64];
+            if block == 0 {
+                buf[0] = 1.0;
+            }
+            stage.process(&mut buf, &gain, &mut report);
+            out.extend_from_slice(&buf);
+        }
+        let c = stage.ceiling();
+        assert!(out.iter().all(|v| v.is_finite() && v.abs() <= c));
+        assert!(report.limited > 0, "the ring is loud enough to limit");
+        // The last feed was at sample 576: silent 100 ms (4800 samples) after it.
+        assert!(out[576 + 4800..].iter().all(|v| *v == 0.0));
+        assert!(out[..576].iter().any(|v| *v != 0.0));
+        assert_eq!(stage.watchdog_trips(), 1);
+    }
+
+    #[test]
     fn fader_ramps_in_and_out() {
         let rate = SampleRate(1000);
         let mut f = Fader::fade_in(Seconds(0.01), rate);
