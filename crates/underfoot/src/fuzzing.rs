@@ -218,7 +218,8 @@ fn flac_bytes(rate: u32, samples: &[f64]) -> Vec<u8> {
     out.extend_from_slice(&(BLOCK as u16).to_be_bytes());
     out.extend_from_slice(&(BLOCK as u16).to_be_bytes());
     out.extend_from_slice(&[0; 6]); // frame sizes unknown
-    let packed = (u64::from(rate) << 44) | (0 << 41) | (15 << 36) | samples.len() as u64;
+    // Rate (20 bits), channels - 1 = 0 (3 bits), bits - 1 = 15 (5 bits), samples (36 bits).
+    let packed = (u64::from(rate) << 44) | (15 << 36) | samples.len() as u64;
     out.extend_from_slice(&packed.to_be_bytes());
     out.extend_from_slice(&[0; 16]); // no MD5
     for (n, block) in samples.chunks(BLOCK).enumerate() {
