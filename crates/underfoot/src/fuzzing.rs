@@ -20,7 +20,7 @@
 //! # Adding a target
 //!
 //! Write `fn run_NAME(data: &[u8])` and `fn seeds_NAME() -> Vec<Vec<u8>>` below and add
-//! one line to [`TARGETS`]; then add `fuzz/fuzz_targets/NAME.rs` (a copy of any other
+//! an entry to [`TARGETS`]; then add `fuzz/fuzz_targets/NAME.rs` (a copy of any other
 //! target with the name changed) and its `[[bin]]` in `fuzz/Cargo.toml`. The stable tests
 //! pick it up from [`TARGETS`] by themselves.
 
@@ -49,7 +49,7 @@ pub struct Target {
     pub seeds: fn() -> Vec<Vec<u8>>,
 }
 
-/// Every target. A new one is one line here (see the [module docs](self#adding-a-target)).
+/// Every target. A new one is an entry here (see the [module docs](self#adding-a-target)).
 pub const TARGETS: &[Target] = &[
     Target {
         name: "library_json",
