@@ -20,7 +20,7 @@
 //! # Adding a target
 //!
 //! Write `fn run_NAME(data: &[u8])` and `fn seeds_NAME() -> Vec<Vec<u8>>` below and add
-//! one line to [`TARGETS`]; then add `fuzz/fuzz_targets/NAME.rs` (a copy of any other
+//! an entry to [`TARGETS`]; then add `fuzz/fuzz_targets/NAME.rs` (a copy of any other
 //! target with the name changed) and its `[[bin]]` in `fuzz/Cargo.toml`. The stable tests
 //! pick it up from [`TARGETS`] by themselves.
 
@@ -49,7 +49,7 @@ pub struct Target {
     pub seeds: fn() -> Vec<Vec<u8>>,
 }
 
-/// Every target. A new one is one line here (see the [module docs](self#adding-a-target)).
+/// Every target. A new one is an entry here (see the [module docs](self#adding-a-target)).
 pub const TARGETS: &[Target] = &[
     Target {
         name: "library_json",
@@ -218,7 +218,8 @@ fn flac_bytes(rate: u32, samples: &[f64]) -> Vec<u8> {
     out.extend_from_slice(&(BLOCK as u16).to_be_bytes());
     out.extend_from_slice(&(BLOCK as u16).to_be_bytes());
     out.extend_from_slice(&[0; 6]); // frame sizes unknown
-    let packed = (u64::from(rate) << 44) | (0 << 41) | (15 << 36) | samples.len() as u64;
+    // Rate (20 bits), channels - 1 = 0 (3 bits), bits - 1 = 15 (5 bits), samples (36 bits).
+    let packed = (u64::from(rate) << 44) | (15 << 36) | samples.len() as u64;
     out.extend_from_slice(&packed.to_be_bytes());
     out.extend_from_slice(&[0; 16]); // no MD5
     for (n, block) in samples.chunks(BLOCK).enumerate() {

@@ -192,14 +192,17 @@ fn save_finding(target: &str, data: &[u8]) -> PathBuf {
 
 /// Ends the process when one input runs past [`HANG_LIMIT`]: a hang must fail the run,
 /// not stall it.
+/// The input running, and since when.
+type Running = Arc<Mutex<Option<(Instant, Vec<u8>)>>>;
+
 struct Watchdog {
-    current: Arc<Mutex<Option<(Instant, Vec<u8>)>>>,
+    current: Running,
     done: Arc<AtomicBool>,
 }
 
 impl Watchdog {
     fn start(target: &'static str) -> Self {
-        let current: Arc<Mutex<Option<(Instant, Vec<u8>)>>> = Arc::default();
+        let current: Running = Arc::default();
         let done = Arc::new(AtomicBool::new(false));
         let (c, d) = (Arc::clone(&current), Arc::clone(&done));
         std::thread::spawn(move || {

@@ -64,10 +64,20 @@ pub(crate) fn decode_audio(
 /// What is wrong with a RIFF/WAVE header that the decoder library does not check before
 /// using it: a `fmt ` chunk declaring no channels or more than [`MAX_WAV_CHANNELS`].
 /// `None` for anything else, including files that are not WAV.
+///
+/// The probe looks for a format's marker past the start of the file too (it skips junk
+/// before a stream), so every `RIFF....WAVE` in the bytes is checked, not only one at
+/// offset 0.
 fn wav_header_fault(bytes: &[u8]) -> Option<String> {
-    if bytes.get(..4)? != b"RIFF" || bytes.get(8..12)? != b"WAVE" {
-        return None;
-    }
+    bytes
+        .windows(12)
+        .enumerate()
+        .filter(|(_, w)| &w[..4] == b"RIFF" && &w[8..] == b"WAVE")
+        .find_map(|(at, _)| riff_fault(&bytes[at..]))
+}
+
+/// [`wav_header_fault`] for a RIFF/WAVE header at the start of `bytes`.
+fn riff_fault(bytes: &[u8]) -> Option<String> {
     let mut at = 12usize;
     while let Some(header) = bytes.get(at..at.checked_add(8)?) {
         let size = u32::from_le_bytes(header[4..8].try_into().ok()?) as usize;
