@@ -540,6 +540,7 @@ targets! {
     calibration_json,
     compensation_json,
     osc,
+    cli_specs,
     serial,
 }
 
