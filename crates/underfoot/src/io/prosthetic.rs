@@ -140,6 +140,8 @@ pub struct ProstheticHost {
     ended: bool,
     /// Set by a simulated board when its walk is over.
     finished: Option<Arc<AtomicBool>>,
+    /// Set on the first poll: a simulated board waits for it before it starts its walk.
+    polled: Option<Arc<AtomicBool>>,
     shared: Arc<Mutex<Shared>>,
     /// Only held: dropping it stops and joins the heartbeat thread.
     _heartbeat: Heartbeat,
@@ -367,6 +369,7 @@ impl ProstheticHost {
             mismatched: 0,
             ended: false,
             finished: None,
+            polled: None,
             shared,
             _heartbeat: heartbeat,
         })
@@ -556,6 +559,9 @@ impl EventSource for ProstheticHost {
     ) -> Result<SourceState, IoError> {
         if self.ended {
             return Ok(SourceState::Ended);
+        }
+        if let Some(polled) = &self.polled {
+            polled.store(true, Ordering::SeqCst);
         }
         if self
             .finished
@@ -930,9 +936,17 @@ fn open_simulated(
     let stop = Arc::new(AtomicBool::new(false));
     let finished = Arc::new(AtomicBool::new(false));
     host.finished = Some(Arc::clone(&finished));
+    let polled = Arc::new(AtomicBool::new(false));
+    host.polled = Some(Arc::clone(&polled));
     let thread = {
         let stop = Arc::clone(&stop);
         thread::spawn(move || {
+            // Like a board that waits for its host: frames sent before anyone reads them
+            // would reach the engine in one burst, a walk squeezed into an instant (whose
+            // strikes the detector cannot tell apart) when the host is slow to start.
+            while !polled.load(Ordering::SeqCst) && !stop.load(Ordering::SeqCst) {
+                thread::sleep(Duration::from_millis(1));
+            }
             // Linger so the host's last servo frames still arrive and are recorded.
             foot.serve(&mut master, &stop, &finished, Duration::from_millis(300))
         })
