@@ -36,6 +36,8 @@ unary! {
     round => round;
     /// Largest integer not above.
     floor => floor;
+    /// Integer part, towards zero.
+    trunc => trunc;
     /// Absolute value.
     abs => fabs;
 }

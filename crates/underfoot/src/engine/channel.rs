@@ -155,7 +155,7 @@ impl Channel {
     }
 
     /// Renders `out.len()` samples (at most `max_block`): the synthesis only; the engine's
-    /// output stage ([`crate::safety::OutputStage`]) takes it from there. Returns
+    /// output stage ([`super::OutputStage`]) takes it from there. Returns
     /// non-finite resets.
     pub(super) fn render(&mut self, out: &mut [f32]) -> u32 {
         let n = out.len().min(self.drive_buf.len());

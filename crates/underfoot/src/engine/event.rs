@@ -1,21 +1,8 @@
 //! What reaches the audio thread: force readings, explicit steps, material changes.
 
 use crate::force::SensorReading;
-use crate::units::Seconds;
 
-/// The documented window of one strike sent as an [`Event::Step`] (an OSC
-/// `/underfoot/step`, a VR engine's footstep): the channel plays for this long after the
-/// step, then the watchdog fades it out, so a channel fed only steps is silent within
-/// `STEP_WINDOW` plus the watchdog's fade (50 ms by default) of its last step.
-///
-/// 0.5 s is the longest e-fold decay any voice plays
-/// ([`VoiceConfig::longest_decay`](crate::synthesis::VoiceConfig::longest_decay) and the
-/// physical modes' [`LONGEST_DECAY`](crate::physical::resonator::LONGEST_DECAY)): a
-/// strike of a material whose modes all decay faster than that has faded by at least its
-/// slowest mode's `e^{-0.5 s / τ}` when the window closes; one at the limit is cut by the
-/// fade at -8.7 dB, the price of a bound on how long a lone step can leave an actuator
-/// on. A later step restarts the window.
-pub const STEP_WINDOW: Seconds = Seconds(0.5);
+pub use crate::safety::STEP_WINDOW;
 
 /// One input to the engine. Small and `Copy`, so it crosses a lock-free queue by value.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -52,6 +52,7 @@ mod channel;
 pub mod clock;
 pub mod event;
 pub mod offline;
+mod output;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
@@ -64,11 +65,12 @@ use crate::compensation::chain::{Compensation, CompensationChain};
 use crate::force::drive::{DriveKind, Polarity};
 use crate::force::steps::DetectorConfig;
 use crate::material::Library;
-use crate::safety::{Fader, LimiterReport, OutputStage, WatchdogConfig};
+use crate::safety::{Fader, LimiterReport, WatchdogConfig};
 use crate::synthesis::{PreparedMaterial, VoiceConfig, VoiceError};
 use crate::units::{Decibels, Hz, Newtons, SampleRate, Seconds};
 use channel::Channel;
 use clock::SensorClock;
+pub use output::OutputStage;
 
 /// Everything the engine is set up with.
 #[derive(Debug, Clone, PartialEq)]

@@ -3,7 +3,7 @@
 //! # The output stage
 //!
 //! Every sample that reaches a device or a file leaves the engine through one
-//! [`OutputStage`] per channel, and nothing runs after it but the conversion to the
+//! [`OutputStage`](crate::engine::OutputStage) per channel, and nothing runs after it but the conversion to the
 //! device's format. In order:
 //!
 //! 1. **Compensation** (the device equalizer and the limb filter, `--eq` and `--user`):
@@ -14,7 +14,7 @@
 //!    crashed), its gain fades to exactly zero: the output is silent within
 //!    `timeout + fade` (100 ms by default) of the last force reading, whatever the model
 //!    and the compensation, and within that of the end of a step's
-//!    [`STEP_WINDOW`](crate::engine::event::STEP_WINDOW) for a channel fed only steps.
+//!    [`STEP_WINDOW`] for a channel fed only steps.
 //! 3. **Gain and fader** ([`Fader`]): the output gain, and the start-up and shut-down ramps
 //!    of the whole output, so the actuator never sees a step (a pop).
 //! 4. **Non-finite guard and hard limiter** ([`Limiter`]): a NaN or an infinity becomes
@@ -33,7 +33,6 @@
 //! bits; rounded, 16423). The price is a bias of half a step towards zero, 96 dB below
 //! full scale in 16 bits.
 
-use crate::compensation::chain::CompensationChain;
 use crate::units::{Decibels, SampleRate, Seconds};
 
 /// `x · 2^(bits-1)` truncated towards zero, within the `bits`-bit two's complement range
@@ -48,81 +47,22 @@ pub fn quantize(x: f32, bits: u32) -> i32 {
         return 0;
     }
     // `as` saturates, and the clamp keeps the code inside `bits` bits.
-    (f64::from(x) * full).trunc().clamp(-full, full - 1.0) as i32
+    crate::math::trunc(f64::from(x) * full).clamp(-full, full - 1.0) as i32
 }
 
-/// The last stages before a device or a file for one channel: compensation, watchdog,
-/// gain and fade, non-finite guard and limiter, in that order (module docs). Never
-/// allocates after construction.
-#[derive(Debug)]
-pub struct OutputStage {
-    compensation: Option<CompensationChain>,
-    watchdog: Watchdog,
-    limiter: Limiter,
-}
-
-impl OutputStage {
-    /// A stage with `compensation` (or none), a watchdog that starts silent (no input
-    /// yet), and a limiter at `ceiling`.
-    #[must_use]
-    pub fn new(
-        compensation: Option<CompensationChain>,
-        watchdog: &WatchdogConfig,
-        ceiling: Decibels,
-        release: Seconds,
-        rate: SampleRate,
-    ) -> Self {
-        Self {
-            compensation,
-            watchdog: Watchdog::new(watchdog, rate),
-            limiter: Limiter::new(ceiling, release, rate),
-        }
-    }
-
-    /// Input arrived (a force reading).
-    pub fn feed(&mut self) {
-        self.watchdog.feed();
-    }
-
-    /// An explicit step arrived: stay alive for its window.
-    pub fn feed_step(&mut self) {
-        self.watchdog.feed_step();
-    }
-
-    /// Times the watchdog has faded the channel out.
-    #[must_use]
-    pub fn watchdog_trips(&self) -> u64 {
-        self.watchdog.trips
-    }
-
-    /// The limiter's ceiling as an amplitude.
-    #[must_use]
-    pub fn ceiling(&self) -> f32 {
-        self.limiter.ceiling()
-    }
-
-    /// Takes `buf` (the synthesis) to what the device may play, in place: every sample
-    /// is finite and within the ceiling, and zero once the watchdog has faded out. `gain`
-    /// holds the output gain times the fader for each sample (at least `buf.len()`).
-    /// Returns how many blocks the compensation silenced for a non-finite value.
-    #[inline]
-    pub fn process(&mut self, buf: &mut [f32], gain: &[f32], report: &mut LimiterReport) -> u32 {
-        let resets = match &mut self.compensation {
-            Some(chain) => chain.process(buf),
-            None => 0,
-        };
-        for (y, g) in buf.iter_mut().zip(gain) {
-            let w = self.watchdog.tick();
-            // A silenced channel is exactly zero, whatever the compensation still holds
-            // (even a non-finite value: there is nothing to count, nothing is played).
-            let limited = self
-                .limiter
-                .tick(if w == 0.0 { 0.0 } else { *y * w * g }, report);
-            *y = limited;
-        }
-        resets
-    }
-}
+/// The documented window of one strike sent as an [`Event::Step`](crate::engine::Event::Step) (an OSC
+/// `/underfoot/step`, a VR engine's footstep): the channel plays for this long after the
+/// step, then the watchdog fades it out, so a channel fed only steps is silent within
+/// `STEP_WINDOW` plus the watchdog's fade (50 ms by default) of its last step.
+///
+/// 0.5 s is the longest e-fold decay any voice plays
+/// ([`VoiceConfig::longest_decay`](crate::synthesis::VoiceConfig::longest_decay) and the
+/// physical modes' [`LONGEST_DECAY`](crate::physical::resonator::LONGEST_DECAY)): a
+/// strike of a material whose modes all decay faster than that has faded by at least its
+/// slowest mode's `e^{-0.5 s / τ}` when the window closes; one at the limit is cut by the
+/// fade at -8.7 dB, the price of a bound on how long a lone step can leave an actuator
+/// on. A later step restarts the window.
+pub const STEP_WINDOW: Seconds = Seconds(0.5);
 
 /// A peak limiter with an absolute ceiling.
 ///
@@ -188,7 +128,7 @@ pub struct WatchdogConfig {
     /// How long the fade to silence takes (default 50 ms, so silence within 100 ms).
     pub fade: Seconds,
     /// How long an explicit step event keeps the channel alive, for sources that send
-    /// steps but no force (default [`STEP_WINDOW`](crate::engine::event::STEP_WINDOW),
+    /// steps but no force (default [`STEP_WINDOW`],
     /// the documented window of a strike: silence within `step_hold + fade` of a step).
     pub step_hold: Seconds,
     /// How long the gain takes to come back when input resumes (default 1 ms, so a
@@ -201,7 +141,7 @@ impl Default for WatchdogConfig {
         Self {
             timeout: Seconds(0.05),
             fade: Seconds(0.05),
-            step_hold: crate::engine::event::STEP_WINDOW,
+            step_hold: STEP_WINDOW,
             recover: Seconds(0.001),
         }
     }
@@ -401,59 +341,6 @@ mod tests {
         assert_eq!(quantize(f32::NAN, 16), 0);
         assert_eq!(quantize(f32::INFINITY, 32), i32::MAX);
         assert_eq!(quantize(f32::NEG_INFINITY, 32), i32::MIN);
-    }
-
-    /// Whatever the compensation still rings with, a channel whose watchdog has faded
-    /// out is exactly zero; the ceiling holds on what does come out.
-    #[test]
-    fn the_output_stage_silences_after_the_compensation() {
-        use crate::compensation::chain::Compensation;
-        use crate::signal::{Biquad, Sos};
-        let rate = SampleRate(48_000);
-        // A limb filter that rings for seconds.
-        let r = 0.99999;
-        let w: f64 = 0.02;
-        let limb = Sos::new(vec![Biquad {
-            b: [1.0, 0.0, 0.0],
-            a: [1.0, -2.0 * r * w.cos(), r * r],
-        }]);
-        let chain = CompensationChain::new(
-            &Compensation {
-                equalizer: None,
-                limb: Some(limb),
-            },
-            rate,
-            64,
-        )
-        .unwrap();
-        let mut stage = OutputStage::new(
-            Some(chain),
-            &WatchdogConfig::default(),
-            Decibels(-6.0),
-            Seconds(0.05),
-            rate,
-        );
-        let gain = [1.0f32; 64];
-        let mut report = LimiterReport::default();
-        let mut out = Vec::new();
-        for block in 0..200 {
-            if block < 10 {
-                stage.feed();
-            }
-            let mut buf = [0.0f32; 64];
-            if block == 0 {
-                buf[0] = 1.0;
-            }
-            stage.process(&mut buf, &gain, &mut report);
-            out.extend_from_slice(&buf);
-        }
-        let c = stage.ceiling();
-        assert!(out.iter().all(|v| v.is_finite() && v.abs() <= c));
-        assert!(report.limited > 0, "the ring is loud enough to limit");
-        // The last feed was at sample 576: silent 100 ms (4800 samples) after it.
-        assert!(out[576 + 4800..].iter().all(|v| *v == 0.0));
-        assert!(out[..576].iter().any(|v| *v != 0.0));
-        assert_eq!(stage.watchdog_trips(), 1);
     }
 
     #[test]

@@ -1,0 +1,143 @@
+//! The engine's output stage: the one place where a channel's synthesis becomes what a
+//! device or a file receives. It composes the configured compensation with the safety
+//! stages of [`crate::safety`] (whose module docs give the order and why): compensation,
+//! watchdog, gain and fade, non-finite guard and limiter. Nothing runs after it but the
+//! conversion to the device's format ([`crate::safety::quantize`]).
+//!
+//! It lives here, not in `safety`, because the compensation chain needs the standard
+//! library while the safety stages are part of the `no_std` firmware core.
+
+use crate::compensation::chain::CompensationChain;
+use crate::safety::{Limiter, LimiterReport, Watchdog, WatchdogConfig};
+use crate::units::{Decibels, SampleRate, Seconds};
+
+/// The last stages before a device or a file for one channel: compensation, watchdog,
+/// gain and fade, non-finite guard and limiter, in that order ([`crate::safety`] module docs). Never
+/// allocates after construction.
+#[derive(Debug)]
+pub struct OutputStage {
+    compensation: Option<CompensationChain>,
+    watchdog: Watchdog,
+    limiter: Limiter,
+}
+
+impl OutputStage {
+    /// A stage with `compensation` (or none), a watchdog that starts silent (no input
+    /// yet), and a limiter at `ceiling`.
+    #[must_use]
+    pub fn new(
+        compensation: Option<CompensationChain>,
+        watchdog: &WatchdogConfig,
+        ceiling: Decibels,
+        release: Seconds,
+        rate: SampleRate,
+    ) -> Self {
+        Self {
+            compensation,
+            watchdog: Watchdog::new(watchdog, rate),
+            limiter: Limiter::new(ceiling, release, rate),
+        }
+    }
+
+    /// Input arrived (a force reading).
+    pub fn feed(&mut self) {
+        self.watchdog.feed();
+    }
+
+    /// An explicit step arrived: stay alive for its window.
+    pub fn feed_step(&mut self) {
+        self.watchdog.feed_step();
+    }
+
+    /// Times the watchdog has faded the channel out.
+    #[must_use]
+    pub fn watchdog_trips(&self) -> u64 {
+        self.watchdog.trips
+    }
+
+    /// The limiter's ceiling as an amplitude.
+    #[must_use]
+    pub fn ceiling(&self) -> f32 {
+        self.limiter.ceiling()
+    }
+
+    /// Takes `buf` (the synthesis) to what the device may play, in place: every sample
+    /// is finite and within the ceiling, and zero once the watchdog has faded out. `gain`
+    /// holds the output gain times the fader for each sample (at least `buf.len()`).
+    /// Returns how many blocks the compensation silenced for a non-finite value.
+    #[inline]
+    pub fn process(&mut self, buf: &mut [f32], gain: &[f32], report: &mut LimiterReport) -> u32 {
+        let resets = match &mut self.compensation {
+            Some(chain) => chain.process(buf),
+            None => 0,
+        };
+        for (y, g) in buf.iter_mut().zip(gain) {
+            let w = self.watchdog.tick();
+            // A silenced channel is exactly zero, whatever the compensation still holds
+            // (even a non-finite value: there is nothing to count, nothing is played).
+            let limited = self
+                .limiter
+                .tick(if w == 0.0 { 0.0 } else { *y * w * g }, report);
+            *y = limited;
+        }
+        resets
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Whatever the compensation still rings with, a channel whose watchdog has faded
+    /// out is exactly zero; the ceiling holds on what does come out.
+    #[test]
+    fn the_output_stage_silences_after_the_compensation() {
+        use crate::compensation::chain::Compensation;
+        use crate::signal::{Biquad, Sos};
+        let rate = SampleRate(48_000);
+        // A limb filter that rings for seconds.
+        let r = 0.99999;
+        let w: f64 = 0.02;
+        let limb = Sos::new(vec![Biquad {
+            b: [1.0, 0.0, 0.0],
+            a: [1.0, -2.0 * r * w.cos(), r * r],
+        }]);
+        let chain = CompensationChain::new(
+            &Compensation {
+                equalizer: None,
+                limb: Some(limb),
+            },
+            rate,
+            64,
+        )
+        .unwrap();
+        let mut stage = OutputStage::new(
+            Some(chain),
+            &WatchdogConfig::default(),
+            Decibels(-6.0),
+            Seconds(0.05),
+            rate,
+        );
+        let gain = [1.0f32; 64];
+        let mut report = LimiterReport::default();
+        let mut out = Vec::new();
+        for block in 0..200 {
+            if block < 10 {
+                stage.feed();
+            }
+            let mut buf = [0.0f32; 64];
+            if block == 0 {
+                buf[0] = 1.0;
+            }
+            stage.process(&mut buf, &gain, &mut report);
+            out.extend_from_slice(&buf);
+        }
+        let c = stage.ceiling();
+        assert!(out.iter().all(|v| v.is_finite() && v.abs() <= c));
+        assert!(report.limited > 0, "the ring is loud enough to limit");
+        // The last feed was at sample 576: silent 100 ms (4800 samples) after it.
+        assert!(out[576 + 4800..].iter().all(|v| *v == 0.0));
+        assert!(out[..576].iter().any(|v| *v != 0.0));
+        assert_eq!(stage.watchdog_trips(), 1);
+    }
+}
