@@ -24,6 +24,7 @@
 //! caller's loop cannot spin. No readings come meanwhile, so the engine's watchdog fades
 //! the output to silence, as for any input that goes quiet.
 
+use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
 use crate::engine::Event;
@@ -150,18 +151,140 @@ impl Backoff {
     }
 }
 
+/// A source's link to a device that can be lost and reopened: the loss, the backoff
+/// between attempts, the attempts themselves, and the [`LinkEvent`]s and counts that
+/// report them. The serial sources hold one each; what "reopen" means (a port, a port and
+/// its writer) is the source's, given to [`Reconnect::retry`].
+#[derive(Debug)]
+pub(crate) struct Reconnect {
+    device: String,
+    backoff: Backoff,
+    outage: Option<Outage>,
+    /// When the device was last reopened, to tell a link that held from one that flaps.
+    up_since: Instant,
+    events: VecDeque<LinkEvent>,
+    disconnects: u64,
+    reconnects: u64,
+}
+
+/// What [`Reconnect::retry`] did.
+pub(crate) enum Retry<T> {
+    /// The device is not lost.
+    NotLost,
+    /// Still lost: the poll's time was spent waiting (or on a failed attempt).
+    Waiting,
+    /// Reopened: here is the new handle.
+    Back(T),
+}
+
+impl Reconnect {
+    /// A link to `device`, up, with the default [`Backoff`].
+    pub(crate) fn new(device: &str) -> Self {
+        Self {
+            device: device.to_owned(),
+            backoff: Backoff::default(),
+            outage: None,
+            up_since: Instant::now(),
+            events: VecDeque::new(),
+            disconnects: 0,
+            reconnects: 0,
+        }
+    }
+
+    pub(crate) fn set_backoff(&mut self, backoff: Backoff) {
+        self.backoff = backoff;
+    }
+
+    /// The device went away: an outage begins, reported as [`LinkEvent::Lost`].
+    pub(crate) fn lose(&mut self, reason: String) {
+        self.disconnects += 1;
+        if self.up_since.elapsed() >= self.backoff.max() {
+            // The link held: a new outage starts from the shortest delay. One that drops
+            // again at once keeps backing off instead of reopening ten times a second.
+            self.backoff.reset();
+        }
+        self.outage = Some(Outage::start(&mut self.backoff));
+        self.push(LinkEvent::Lost {
+            device: self.device.clone(),
+            reason,
+        });
+    }
+
+    /// While lost: waits up to `timeout`, and calls `open` when an attempt is due. A
+    /// success is reported as [`LinkEvent::Back`], the first failure of an outage as
+    /// [`LinkEvent::RetryFailed`] (later ones would only repeat it every two seconds).
+    pub(crate) fn retry<T>(
+        &mut self,
+        timeout: Duration,
+        open: impl FnOnce() -> Result<T, IoError>,
+    ) -> Retry<T> {
+        let Some(outage) = self.outage.as_mut() else {
+            return Retry::NotLost;
+        };
+        if !outage.wait(timeout) {
+            return Retry::Waiting;
+        }
+        match open() {
+            Ok(handle) => {
+                let event = LinkEvent::Back {
+                    device: self.device.clone(),
+                    after: outage.since.elapsed(),
+                    attempts: outage.attempts + 1,
+                };
+                self.outage = None;
+                self.up_since = Instant::now();
+                self.reconnects += 1;
+                self.push(event);
+                Retry::Back(handle)
+            }
+            Err(e) => {
+                if outage.failed(&mut self.backoff) {
+                    let reason = match e {
+                        IoError::Open { reason, .. } => reason,
+                        other => other.to_string(),
+                    };
+                    self.push(LinkEvent::RetryFailed {
+                        device: self.device.clone(),
+                        reason,
+                    });
+                }
+                Retry::Waiting
+            }
+        }
+    }
+
+    /// Times lost, and times reopened.
+    pub(crate) fn counts(&self) -> (u64, u64) {
+        (self.disconnects, self.reconnects)
+    }
+
+    /// The oldest event not yet taken.
+    pub(crate) fn next_event(&mut self) -> Option<LinkEvent> {
+        self.events.pop_front()
+    }
+
+    /// Keeps a few events, the oldest dropped past them: a caller that never asks must not
+    /// make a flapping link grow memory.
+    fn push(&mut self, event: LinkEvent) {
+        if self.events.len() >= 16 {
+            self.events.pop_front();
+        }
+        self.events.push_back(event);
+    }
+}
+
 /// The reconnection state of a source whose device was lost: when to try next, since when,
-/// how many attempts. Shared by the serial sources.
+/// how many attempts.
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Outage {
-    pub(crate) since: Instant,
-    pub(crate) next_attempt: Instant,
-    pub(crate) attempts: u32,
+struct Outage {
+    since: Instant,
+    next_attempt: Instant,
+    attempts: u32,
 }
 
 impl Outage {
     /// Lost now; the first attempt after `backoff`'s next delay.
-    pub(crate) fn start(backoff: &mut Backoff) -> Self {
+    fn start(backoff: &mut Backoff) -> Self {
         let now = Instant::now();
         Self {
             since: now,
@@ -173,7 +296,7 @@ impl Outage {
     /// Waits until the next attempt is due or `timeout` has passed, whichever is first,
     /// and says whether an attempt is due. Never returns at once unless one is due (or
     /// `timeout` is zero), so a poll loop around it cannot spin.
-    pub(crate) fn wait(&self, timeout: Duration) -> bool {
+    fn wait(&self, timeout: Duration) -> bool {
         let left = self.next_attempt.saturating_duration_since(Instant::now());
         if left.is_zero() {
             return true;
@@ -184,7 +307,7 @@ impl Outage {
 
     /// An attempt failed: the next after `backoff`'s next delay. Returns whether it was
     /// the first.
-    pub(crate) fn failed(&mut self, backoff: &mut Backoff) -> bool {
+    fn failed(&mut self, backoff: &mut Backoff) -> bool {
         self.attempts += 1;
         self.next_attempt = Instant::now() + backoff.next_delay();
         self.attempts == 1

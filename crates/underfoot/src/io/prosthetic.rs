@@ -58,7 +58,6 @@
 //! heartbeat's scheduling slack. The serial line adds `bytes × 10 / baud` each way (about 1.3 ms for a
 //! 15-byte frame at 115200 baud), and the servo's own mechanics dominate everything.
 
-use std::collections::VecDeque;
 use std::io::{self, Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
@@ -69,9 +68,9 @@ use serialport::SerialPort;
 
 use super::serial::{
     Frame, FrameData, FrameDecoder, MAX_FRAME_SENSORS, MAX_FRAME_SERVOS, ServoFrame, describe,
-    encode_frame, encode_servo_frame, is_quiet, open_port, push_event,
+    encode_frame, encode_servo_frame, is_quiet, open_port,
 };
-use super::{Backoff, EventSource, IoError, LinkEvent, Outage, SourceState, SourceStats};
+use super::{Backoff, EventSource, IoError, LinkEvent, Reconnect, Retry, SourceState, SourceStats};
 use crate::engine::Event;
 use crate::force::SensorReading;
 use crate::force::calibration::ApplyStats;
@@ -121,12 +120,7 @@ pub struct ProstheticHost {
     /// The baud rate to reopen a lost port at (its path is `device`); `None` for a port
     /// handed in, which ends the source when it hangs up.
     reopen: Option<u32>,
-    backoff: Backoff,
-    outage: Option<Outage>,
-    up_since: Instant,
-    link_events: VecDeque<LinkEvent>,
-    disconnects: u64,
-    reconnects: u64,
+    link: Reconnect,
     decoder: FrameDecoder,
     frame_sensors: usize,
     scale: CountScale,
@@ -351,12 +345,7 @@ impl ProstheticHost {
             port: Some(port),
             device: device.to_owned(),
             reopen: None,
-            backoff: Backoff::default(),
-            outage: None,
-            up_since: Instant::now(),
-            link_events: VecDeque::new(),
-            disconnects: 0,
-            reconnects: 0,
+            link: Reconnect::new(device),
             decoder: FrameDecoder::new(),
             frame_sensors: config.frame_sensors,
             scale: config.scale.clone(),
@@ -379,7 +368,7 @@ impl ProstheticHost {
     /// doubling to 2 s).
     #[must_use]
     pub fn with_backoff(mut self, backoff: Backoff) -> Self {
-        self.backoff = backoff;
+        self.link.set_backoff(backoff);
         self
     }
 
@@ -459,75 +448,37 @@ impl ProstheticHost {
             self.ended = true;
             return;
         }
-        self.disconnects += 1;
-        if self.up_since.elapsed() >= self.backoff.max() {
-            self.backoff.reset();
-        }
-        self.outage = Some(Outage::start(&mut self.backoff));
-        push_event(
-            &mut self.link_events,
-            LinkEvent::Lost {
-                device: self.device.clone(),
-                reason,
-            },
-        );
+        self.link.lose(reason);
     }
 
     /// While the port is lost: waits up to `timeout`, reopening it when an attempt is due,
     /// and hands the heartbeat a write handle of the new port.
     fn poll_lost(&mut self, timeout: Duration) -> SourceState {
-        let (Some(outage), Some(baud)) = (self.outage.as_mut(), self.reopen) else {
+        let Some(baud) = self.reopen else {
             return SourceState::Ended;
         };
-        if !outage.wait(timeout) {
-            return SourceState::Disconnected;
-        }
-        let opened = open_port(&self.device, baud, self.timeout).and_then(|port| {
-            let writer = writer_of(port.as_ref(), self.period).map_err(|e| IoError::Open {
-                device: self.device.clone(),
+        let (device, port_timeout, period) = (&self.device, self.timeout, self.period);
+        let open = || {
+            let port = open_port(device, baud, port_timeout)?;
+            let writer = writer_of(port.as_ref(), period).map_err(|e| IoError::Open {
+                device: device.clone(),
                 reason: e.to_string(),
             })?;
             Ok((port, writer))
-        });
-        match opened {
-            Ok((port, writer)) => {
-                let after = outage.since.elapsed();
-                let attempts = outage.attempts + 1;
+        };
+        match self.link.retry(timeout, open) {
+            // Not lost and not ended: nothing to wait for.
+            Retry::NotLost => SourceState::Ended,
+            Retry::Waiting => SourceState::Disconnected,
+            Retry::Back((port, writer)) => {
                 {
                     let mut shared = lock(&self.shared);
                     shared.new_writer = Some(writer);
                     shared.write_lost = None;
                 }
                 self.port = Some(port);
-                self.outage = None;
-                self.up_since = Instant::now();
-                self.reconnects += 1;
                 self.decoder.resync();
-                push_event(
-                    &mut self.link_events,
-                    LinkEvent::Back {
-                        device: self.device.clone(),
-                        after,
-                        attempts,
-                    },
-                );
                 SourceState::Open
-            }
-            Err(e) => {
-                if outage.failed(&mut self.backoff) {
-                    let reason = match e {
-                        IoError::Open { reason, .. } => reason,
-                        other => other.to_string(),
-                    };
-                    push_event(
-                        &mut self.link_events,
-                        LinkEvent::RetryFailed {
-                            device: self.device.clone(),
-                            reason,
-                        },
-                    );
-                }
-                SourceState::Disconnected
             }
         }
     }
@@ -628,13 +579,13 @@ impl EventSource for ProstheticHost {
             events: s.events,
             rejected: s.rejected,
             skipped_bytes: self.decoder.stats().skipped_bytes,
-            disconnects: self.disconnects,
-            reconnects: self.reconnects,
+            disconnects: self.link.counts().0,
+            reconnects: self.link.counts().1,
         }
     }
 
     fn link_event(&mut self) -> Option<LinkEvent> {
-        self.link_events.pop_front()
+        self.link.next_event()
     }
 }
 

@@ -105,13 +105,12 @@
 //!   (see [`super`], *A lost device*).
 //! - [`ReferenceSender`]: the firmware's side, in Rust, for tests and simulation.
 
-use std::collections::VecDeque;
 use std::io::{self, Read, Write};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use serialport::SerialPort;
 
-use super::{Backoff, EventSource, IoError, LinkEvent, Outage, SourceState, SourceStats};
+use super::{Backoff, EventSource, IoError, LinkEvent, Reconnect, Retry, SourceState, SourceStats};
 use crate::engine::Event;
 use crate::force::calibration::ApplyStats;
 use crate::force::scale::CountScale;
@@ -598,13 +597,7 @@ pub struct SerialSource {
     port: Option<Box<dyn SerialPort>>,
     device: String,
     baud: u32,
-    backoff: Backoff,
-    outage: Option<Outage>,
-    /// When the port was last reopened, to tell a link that held from one that flaps.
-    up_since: Instant,
-    link_events: VecDeque<LinkEvent>,
-    disconnects: u64,
-    reconnects: u64,
+    link: Reconnect,
     layout: Vec<usize>,
     sensors: usize,
     scale: CountScale,
@@ -663,12 +656,7 @@ impl SerialSource {
             port: Some(port),
             device: config.port.clone(),
             baud: config.baud,
-            backoff: Backoff::default(),
-            outage: None,
-            up_since: Instant::now(),
-            link_events: VecDeque::new(),
-            disconnects: 0,
-            reconnects: 0,
+            link: Reconnect::new(&config.port),
             layout: config.layout.clone(),
             sensors,
             scale: config.scale.clone(),
@@ -686,7 +674,7 @@ impl SerialSource {
     /// doubling to 2 s).
     #[must_use]
     pub fn with_backoff(mut self, backoff: Backoff) -> Self {
-        self.backoff = backoff;
+        self.link.set_backoff(backoff);
         self
     }
 
@@ -729,64 +717,22 @@ impl SerialSource {
     /// Closes the lost port and starts waiting to reopen it.
     fn lose(&mut self, reason: String) {
         self.port = None;
-        self.disconnects += 1;
-        if self.up_since.elapsed() >= self.backoff.max() {
-            // The link held: a new outage starts from the shortest delay. One that drops
-            // again at once keeps backing off instead of reopening ten times a second.
-            self.backoff.reset();
-        }
-        self.outage = Some(Outage::start(&mut self.backoff));
-        push_event(
-            &mut self.link_events,
-            LinkEvent::Lost {
-                device: self.device.clone(),
-                reason,
-            },
-        );
+        self.link.lose(reason);
     }
 
     /// While the port is lost: waits up to `timeout`, reopening it when an attempt is due.
     fn poll_lost(&mut self, timeout: Duration) -> SourceState {
-        let Some(outage) = self.outage.as_mut() else {
-            return SourceState::Open;
-        };
-        if !outage.wait(timeout) {
-            return SourceState::Disconnected;
-        }
-        match open_port(&self.device, self.baud, self.timeout) {
-            Ok(port) => {
-                let after = outage.since.elapsed();
-                let attempts = outage.attempts + 1;
+        let (device, baud, port_timeout) = (&self.device, self.baud, self.timeout);
+        match self
+            .link
+            .retry(timeout, || open_port(device, baud, port_timeout))
+        {
+            Retry::NotLost => SourceState::Open,
+            Retry::Waiting => SourceState::Disconnected,
+            Retry::Back(port) => {
                 self.port = Some(port);
-                self.outage = None;
-                self.up_since = Instant::now();
-                self.reconnects += 1;
                 self.decoder.resync();
-                push_event(
-                    &mut self.link_events,
-                    LinkEvent::Back {
-                        device: self.device.clone(),
-                        after,
-                        attempts,
-                    },
-                );
                 SourceState::Open
-            }
-            Err(e) => {
-                if outage.failed(&mut self.backoff) {
-                    let reason = match e {
-                        IoError::Open { reason, .. } => reason,
-                        other => other.to_string(),
-                    };
-                    push_event(
-                        &mut self.link_events,
-                        LinkEvent::RetryFailed {
-                            device: self.device.clone(),
-                            reason,
-                        },
-                    );
-                }
-                SourceState::Disconnected
             }
         }
     }
@@ -875,13 +821,13 @@ impl EventSource for SerialSource {
             events: self.events,
             rejected: d.rejected + self.mismatched,
             skipped_bytes: d.skipped_bytes,
-            disconnects: self.disconnects,
-            reconnects: self.reconnects,
+            disconnects: self.link.counts().0,
+            reconnects: self.link.counts().1,
         }
     }
 
     fn link_event(&mut self) -> Option<LinkEvent> {
-        self.link_events.pop_front()
+        self.link.next_event()
     }
 }
 
@@ -932,15 +878,6 @@ pub(crate) fn describe(e: &io::Error) -> String {
     } else {
         e.to_string()
     }
-}
-
-/// Link events waiting for the caller, the oldest dropped past a few (a caller that never
-/// asks must not make a flapping link grow memory).
-pub(crate) fn push_event(queue: &mut VecDeque<LinkEvent>, event: LinkEvent) {
-    if queue.len() >= 16 {
-        queue.pop_front();
-    }
-    queue.push_back(event);
 }
 
 /// The firmware's side of the protocol, in Rust: numbers frames and writes them to any
