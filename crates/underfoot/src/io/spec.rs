@@ -264,14 +264,7 @@ impl FromStr for Band {
 /// # Errors
 /// [`SpecError::Invalid`] naming the text and the range.
 pub fn parse_seconds(s: &str, what: &'static str, lo: f64, hi: f64) -> Result<Seconds, SpecError> {
-    match s.trim().parse::<f64>() {
-        Ok(v) if (lo..=hi).contains(&v) => Ok(Seconds(v)),
-        _ => Err(invalid(
-            what,
-            s,
-            format!("expected seconds from {lo} to {hi}"),
-        )),
-    }
+    parse_within(s, what, lo, hi, "seconds").map(Seconds)
 }
 
 /// A finite number within `lo..=hi` (a level in dB, a gain); `what` names it, with its
@@ -280,14 +273,7 @@ pub fn parse_seconds(s: &str, what: &'static str, lo: f64, hi: f64) -> Result<Se
 /// # Errors
 /// [`SpecError::Invalid`] naming the text and the range.
 pub fn parse_number(s: &str, what: &'static str, lo: f64, hi: f64) -> Result<f64, SpecError> {
-    match s.trim().parse::<f64>() {
-        Ok(v) if (lo..=hi).contains(&v) => Ok(v),
-        _ => Err(invalid(
-            what,
-            s,
-            format!("expected a number from {lo} to {hi}"),
-        )),
-    }
+    parse_within(s, what, lo, hi, "a number")
 }
 
 /// The length of a live session: seconds from 0 to [`MAX_SESSION`] (30 days).
@@ -303,14 +289,7 @@ pub fn parse_session_duration(s: &str) -> Result<Seconds, SpecError> {
 /// # Errors
 /// [`SpecError::Invalid`] naming the text and the range.
 pub fn parse_rate(s: &str, what: &'static str, lo: u32, hi: u32) -> Result<SampleRate, SpecError> {
-    match s.trim().parse::<u32>() {
-        Ok(r) if (lo..=hi).contains(&r) => Ok(SampleRate(r)),
-        _ => Err(invalid(
-            what,
-            s,
-            format!("expected a whole number of Hz from {lo} to {hi}"),
-        )),
-    }
+    parse_within(s, what, lo, hi, "a whole number of Hz").map(SampleRate)
 }
 
 /// A whole number within `lo..=hi`; `what` names it in errors.
@@ -318,12 +297,21 @@ pub fn parse_rate(s: &str, what: &'static str, lo: u32, hi: u32) -> Result<Sampl
 /// # Errors
 /// [`SpecError::Invalid`] naming the text and the range.
 pub fn parse_count(s: &str, what: &'static str, lo: usize, hi: usize) -> Result<usize, SpecError> {
-    match s.trim().parse::<usize>() {
-        Ok(n) if (lo..=hi).contains(&n) => Ok(n),
+    parse_within(s, what, lo, hi, "a whole number")
+}
+
+/// `s` (trimmed) parsed as a `T` within `lo..=hi`, else an error that says it expected
+/// `kind` in that range. A NaN is in no range.
+fn parse_within<T>(s: &str, what: &'static str, lo: T, hi: T, kind: &str) -> Result<T, SpecError>
+where
+    T: FromStr + PartialOrd + std::fmt::Display,
+{
+    match s.trim().parse::<T>() {
+        Ok(v) if lo <= v && v <= hi => Ok(v),
         _ => Err(invalid(
             what,
             s,
-            format!("expected a whole number from {lo} to {hi}"),
+            format!("expected {kind} from {lo} to {hi}"),
         )),
     }
 }
