@@ -192,15 +192,8 @@ impl OutputFile {
         let mut checked: Vec<Self> = Vec::with_capacity(outputs.len());
         for path in outputs {
             let out = Self::check(path, inputs)?;
-            if let Some(earlier) = checked.iter().find(|c| c.same_file_as(&out)) {
-                return Err(refuse(
-                    path,
-                    std::io::ErrorKind::InvalidInput,
-                    format!(
-                        "it is the same file as another output of this command ({})",
-                        earlier.given.display()
-                    ),
-                ));
+            for earlier in &checked {
+                out.distinct_from(earlier)?;
             }
             checked.push(out);
         }

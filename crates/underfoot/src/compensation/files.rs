@@ -14,7 +14,7 @@ use super::CompensationError;
 use super::equalizer::{PassReport, Realisation, SpectralWeights};
 use super::limb::LimbModel;
 use super::sweep::FrequencyResponse;
-use crate::atomic_file::{OutputFile, write_atomic};
+use crate::atomic_file::{AtomicWriteError, OutputFile};
 use crate::units::{Band, Hz, SampleRate};
 
 /// The version of every compensation file this build reads and writes.
@@ -36,6 +36,12 @@ fn file_error(path: &Path, reason: impl Into<String>) -> CompensationError {
         path: path.display().to_string(),
         reason: reason.into(),
     }
+}
+
+/// A refused or failed write of `path`, with its cause (which the error's own message
+/// does not repeat).
+pub(crate) fn write_error(path: &Path, e: &AtomicWriteError) -> CompensationError {
+    file_error(path, format!("{e}: {}", e.source))
 }
 
 /// Reads a document of type `T`.
@@ -93,11 +99,8 @@ pub fn from_json_str<T: Document>(text: &str, path: &Path) -> Result<T, Compensa
 /// # Errors
 /// [`CompensationError::File`] when it cannot be written (the old file is kept).
 pub fn save<T: Document>(path: &Path, doc: &T) -> Result<(), CompensationError> {
-    doc.validate()?;
-    let mut text =
-        serde_json::to_string_pretty(doc).map_err(|e| file_error(path, e.to_string()))?;
-    text.push('\n');
-    write_atomic(path, text.as_bytes()).map_err(|e| file_error(path, format!("{e}: {}", e.source)))
+    let out = OutputFile::check(path, &[]).map_err(|e| write_error(path, &e))?;
+    save_to(&out, doc)
 }
 
 /// [`save`] to an output the caller checked against the output policy
@@ -112,7 +115,7 @@ pub fn save_to<T: Document>(out: &OutputFile, doc: &T) -> Result<(), Compensatio
         serde_json::to_string_pretty(doc).map_err(|e| file_error(path, e.to_string()))?;
     text.push('\n');
     out.write(text.as_bytes())
-        .map_err(|e| file_error(path, format!("{e}: {}", e.source)))
+        .map_err(|e| write_error(path, &e))
 }
 
 /// A measured frequency response (`underfoot calibrate sweep`).

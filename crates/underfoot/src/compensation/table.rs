@@ -222,14 +222,9 @@ impl UserTable {
     /// What is invalid in the table (nothing is written), or [`CompensationError::File`]
     /// when writing fails; the old file is then kept.
     pub fn save(&self, path: &Path) -> Result<(), CompensationError> {
-        files::save(
-            path,
-            &TableFile {
-                kind: TableFile::KIND.to_string(),
-                version: FORMAT_VERSION,
-                freqs: self.freqs.clone(),
-                entries: self.entries.clone(),
-            },
+        self.save_to(
+            &crate::atomic_file::OutputFile::check(path, &[])
+                .map_err(|e| files::write_error(path, &e))?,
         )
     }
 

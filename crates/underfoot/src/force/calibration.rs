@@ -71,7 +71,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::atomic_file::{AtomicWriteError, OutputFile, write_atomic};
+use crate::atomic_file::{AtomicWriteError, OutputFile};
 use crate::fit::trf::{FnResiduals, TrfError, TrfOptions, least_squares_bounded};
 use crate::units::Newtons;
 
@@ -1089,8 +1089,7 @@ impl SensorCalibration {
     /// # Errors
     /// What [`SensorCalibration::validate`] finds, or [`CalibrationError::Io`].
     pub fn save(&self, path: &Path) -> Result<(), CalibrationError> {
-        self.validate(&path.display().to_string())?;
-        Ok(write_atomic(path, self.to_json().as_bytes())?)
+        self.save_to(&OutputFile::check(path, &[])?)
     }
 
     /// [`SensorCalibration::save`] to an output the caller checked against the output

@@ -47,7 +47,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use super::{MAX_SENSORS, SensorReading};
-use crate::atomic_file::{AtomicWriteError, OutputFile, write_atomic};
+use crate::atomic_file::{AtomicWriteError, OutputFile};
 use crate::limits::{MAX_TRACK_BYTES, MAX_TRACK_GAP, read_to_string_capped};
 use crate::units::Seconds;
 
@@ -442,8 +442,7 @@ impl ForceTrack {
     /// What [`ForceTrack::validate`] finds (naming `path`), or [`TrackError::Io`] naming
     /// the file and the step that failed.
     pub fn save(&self, path: &Path) -> Result<(), TrackError> {
-        self.validate(&path.display().to_string())?;
-        Ok(write_atomic(path, self.to_csv().as_bytes())?)
+        self.save_to(&OutputFile::check(path, &[])?)
     }
 
     /// [`ForceTrack::save`] to an output the caller checked against the output policy

@@ -293,9 +293,7 @@ impl Library {
     /// # Errors
     /// The errors of [`Library::validate`] (nothing is written), or [`LibraryError::Io`].
     pub fn save(&self, path: impl AsRef<Path>) -> Result<(), LibraryError> {
-        let path = path.as_ref();
-        self.validate_as(&format!("library to be saved to {}", path.display()))?;
-        self.save_to(&OutputFile::check(path, &[])?)
+        self.save_to(&OutputFile::check(path.as_ref(), &[])?)
     }
 
     /// Validates the library and writes it to an output the caller has already checked
