@@ -68,14 +68,15 @@ pub const REFUSED: &str = "refusing to write";
 /// limit).
 pub const MAX_LINKS: usize = 40;
 
-/// A file could not be written, or the policy refused it; the file that was there (if
-/// any) is untouched.
+/// A file could not be read or written, or the policy refused it; a file that was there
+/// is untouched. The one file error of the crate: every stage's error wraps it rather
+/// than repeating its fields.
 ///
 /// Its message is the action and the path; the reason is its [source](std::error::Error::source)
 /// (so a chain printed as `{:#}` says it once).
 #[derive(Debug, thiserror::Error)]
 #[error("{action} {}", path.display())]
-pub struct AtomicWriteError {
+pub struct FileError {
     /// The file (or the temporary file next to it).
     pub path: PathBuf,
     /// The step that failed, e.g. `renaming the temporary file over it`, or [`REFUSED`].
@@ -85,7 +86,10 @@ pub struct AtomicWriteError {
     pub source: std::io::Error,
 }
 
-impl AtomicWriteError {
+/// The name this error had when only writes used it.
+pub type AtomicWriteError = FileError;
+
+impl FileError {
     /// Whether the policy refused the file (as opposed to a failed write).
     #[must_use]
     pub fn is_refusal(&self) -> bool {

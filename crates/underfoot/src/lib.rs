@@ -139,6 +139,8 @@ pub mod atomic_file;
 #[cfg(feature = "std")]
 pub mod compensation;
 #[cfg(feature = "std")]
+pub mod document;
+#[cfg(feature = "std")]
 pub mod engine;
 #[cfg(feature = "std")]
 pub mod export;
