@@ -160,9 +160,13 @@ pub mod limits;
 #[cfg(feature = "std")]
 pub mod material;
 #[cfg(feature = "std")]
+pub mod numeric;
+#[cfg(feature = "std")]
 pub mod physical;
 #[cfg(feature = "std")]
 pub mod recording;
+#[cfg(feature = "std")]
+pub mod sim;
 #[cfg(feature = "std")]
 pub mod synthesis;
 
