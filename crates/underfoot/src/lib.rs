@@ -3,31 +3,61 @@
 //! Learn how a ground material vibrates from recordings of footsteps, and play that
 //! vibration back step by step.
 //!
-//! The crate is laid out as the pipeline it implements; dependencies point one way:
+//! The crate is laid out as the pipeline it implements. Dependencies point one way: a
+//! module uses only modules on its own row's left or on rows above it (a test in
+//! `tests/` checks every `use crate::` edge against this table).
 //!
-//! | stage | module | what it does |
-//! |---|---|---|
-//! | recordings | [`recording`] | decode WAV/FLAC/Ogg/CSV, find each heel strike's onset |
-//! | signal conditioning | [`signal`] | resample, Savitzky-Golay, Butterworth SOS, zero-phase filtering, spectra |
-//! | analysis | [`analysis`] | the measured response of a material: RMS-averaged, 1/6-octave smoothed strike spectra |
-//! | fitting | [`fit`] | IIR fits to a measured response: Levi, vector fitting, damped Gauss-Newton, order search; bounded least squares (trust-region-reflective) |
-//! | material models | [`material`] | the material model, the versioned library file, the built-in presets |
-//! | physical models | [`physical`] | a hammer striking a surface of damped modes: Hunt-Crossley contact, impulse-invariant modes; aggregates as Poisson micro-impacts; calibration from recordings |
-//! | force | [`force`] | sensor readings, force tracks (CSV), the walking gait, heel strikes, the drive signal |
-//! | synthesis | [`synthesis`] | a material's modes at the audio rate; the voice with its per-step perturbation |
-//! | compensation | [`compensation`] | a device's response from sine sweeps (or a simulated tile); the iterative equalizer (filter bank or low-delay minimum-phase filter); the lower-limb model, its fit and inverse; the table of users; online adaptation |
-//! | safety | [`safety`] | hard limiter, input watchdog, start/stop fades |
-//! | interface | [`interface`] | the prosthetic-skin interface: insole force to servo positions (range, dead band, rate limit), its configuration file |
-//! | engine | [`engine`] | N channels in real time: lock-free events, no allocation in the callback; offline renders |
-//! | device I/O | [`io`] | CSV replay, serial, OSC in; WAV and audio devices (cpal) out, each behind a feature |
-//! | firmware export | [`export`] | a library as a C99 header: float, Q15 and Q31 sections, checked, with a reference per-sample loop |
+//! | layer | module | what it does | from |
+//! |---|---|---|---|
+//! | 0 | [`units`], [`math`] | typed units; `libm` or std math for the `no_std` core | |
+//! | 1 | [`numeric`] | bounded least squares, SVD least squares, polynomial roots, bilinear transform, DTFT, median, percentile | |
+//! | 2 | [`signal`], [`safety`] | resample, Savitzky-Golay, Butterworth SOS, zero-phase filtering, spectra, fixed point; the hard limiter, watchdog, fades | [iir], [tile] |
+//! | 3 | [`limits`], [`atomic_file`], [`document`] | bounds on inputs; the output policy and atomic writes; the one versioned-document layer | |
+//! | 4 | [`recording`], [`fit`] | decode WAV/FLAC/Ogg/CSV and find each heel strike; IIR fits to a measured response (Levi, vector fitting, damped Gauss-Newton, order search), linear prediction | [iir], [tile] |
+//! | 5 | [`analysis`], [`force`], [`compensation`] | a material's measured response and the evaluation of renders against recordings; sensor readings, calibration, force tracks, the gait, the drive; a device's response, the equalizer, the limb model, the table of users, online adaptation | [iir], [tile], [limb] |
+//! | 6 | [`physical`] | a hammer striking a surface of damped modes (Hunt-Crossley contact); aggregates as Poisson micro-impacts; parameters estimated from recordings | [iir], [tile] |
+//! | 7 | [`material`] | the material model, the versioned library file, the built-in presets, fit quality | [iir] |
+//! | 8 | [`synthesis`] | a material's modes at the audio rate; the voice with its per-step perturbation | [iir] |
+//! | 9 | [`engine`] | N channels in real time: lock-free events, no allocation in the callback; offline renders | |
+//! | 10 | [`interface`] | the prosthetic-skin interface: insole force to servo positions | |
+//! | 11 | [`io`] | inputs (CSV replay, serial, OSC, gait) and outputs (WAV, audio devices), each device behind a feature | |
+//! | 12 | [`live`] | a live session: an input, the engine and an output, with its status | |
+//! | 13 | [`export`], [`sim`] | a library as a C99 header for firmware; simulators of devices, users and boards for tests and `--device simulated` | |
 //!
 //! Units are types ([`units`]): a [`SampleRate`](units::SampleRate) is not a
 //! [`Hz`](units::Hz), and neither is a bare `f64`.
 //!
 //! Every stage reports bad input through its own error enum; nothing panics on a bad file.
-//! Every file is saved through [`atomic_file`], so a failed save leaves the old file as it
+//! Every file the project writes is a [`document`] (one header, one version scheme) or a
+//! recording, saved through [`atomic_file`], so a failed save leaves the old file as it
 //! was.
+//!
+//! # References
+//!
+//! Three papers are behind the science; the docs name them by these short names.
+//!
+//! - **\[iir\] the IIR paper**: P. Fortin, M. J.-D. Otis, V. Duchaine, *Event-based haptic
+//!   vibration synthesis using a recursive filter for lower limb prosthetics*. Strike
+//!   conditioning ([`signal::savgol`], [`signal::butterworth`], [`recording`]), the
+//!   measured response ([`analysis`]), the IIR fit with its order chosen by NRMSE
+//!   ([`fit`]), force-driven playback with 1% numerator noise at every step
+//!   ([`synthesis::voice`]), and the physical impact model it compares with
+//!   ([`physical`]).
+//! - **\[tile\] the tile paper**: Y. Visell et al., *A Vibrotactile Device for Display of
+//!   Virtual Ground Materials in Walking*. The drive from the falling rate of force
+//!   ([`force`]), the stochastic model of aggregates ([`physical`]), and calibration by
+//!   linear prediction and wavelet analysis ([`fit::lpc`], [`signal::wavelet`]).
+//! - **\[limb\] the compensation paper**: *Modeling of Lower Limbs for Vibrotactile
+//!   Compensation*. The device's response from frequency sweeps, the filter-bank
+//!   equalizer, the rheological limb model fitted per user and the table of users
+//!   ([`compensation`]).
+//!
+//! Where a paper is loose (units, signs, what "order" means), the module that implements
+//! it says what was chosen and why.
+//!
+//! [iir]: #references
+//! [tile]: #references
+//! [limb]: #references
 //!
 //! # Firmware (`no_std`)
 //!
