@@ -9,20 +9,19 @@
 //!
 //! | layer | module | what it does | from |
 //! |---|---|---|---|
-//! | 0 | [`units`], [`math`] | typed units; `libm` or std math for the `no_std` core | |
+//! | 0 | [`math`], [`units`] | `libm` or std math for the `no_std` core; typed units | |
 //! | 1 | [`numeric`] | bounded least squares, SVD least squares, polynomial roots, bilinear transform, DTFT, median, percentile | |
-//! | 2 | [`signal`], [`safety`] | resample, Savitzky-Golay, Butterworth SOS, zero-phase filtering, spectra, fixed point; the hard limiter, watchdog, fades | [iir], [tile] |
+//! | 2 | [`signal`], [`safety`] | resample, Savitzky-Golay, Butterworth SOS, zero-phase filtering, spectra, wavelets, fixed point; the hard limiter, watchdog, fades | [iir], [tile] |
 //! | 3 | [`limits`], [`atomic_file`], [`document`] | bounds on inputs; the output policy and atomic writes; the one versioned-document layer | |
-//! | 4 | [`recording`], [`fit`] | decode WAV/FLAC/Ogg/CSV and find each heel strike; IIR fits to a measured response (Levi, vector fitting, damped Gauss-Newton, order search), linear prediction | [iir], [tile] |
-//! | 5 | [`analysis`], [`force`], [`compensation`] | a material's measured response and the evaluation of renders against recordings; sensor readings, calibration, force tracks, the gait, the drive; a device's response, the equalizer, the limb model, the table of users, online adaptation | [iir], [tile], [limb] |
-//! | 6 | [`physical`] | a hammer striking a surface of damped modes (Hunt-Crossley contact); aggregates as Poisson micro-impacts; parameters estimated from recordings | [iir], [tile] |
-//! | 7 | [`material`] | the material model, the versioned library file, the built-in presets, fit quality | [iir] |
-//! | 8 | [`synthesis`] | a material's modes at the audio rate; the voice with its per-step perturbation | [iir] |
-//! | 9 | [`engine`] | N channels in real time: lock-free events, no allocation in the callback; offline renders | |
-//! | 10 | [`interface`] | the prosthetic-skin interface: insole force to servo positions | |
+//! | 4 | [`recording`], [`force`] | decode WAV/FLAC/Ogg/CSV and find each heel strike; sensor readings, their calibration, force tracks, the gait, steps and the drive | [iir], [tile] |
+//! | 5 | [`fit`], [`compensation`], [`interface`] | IIR fits to a measured response (Levi, vector fitting, damped Gauss-Newton, order search), linear prediction; a device's response, the equalizer, the limb model, the table of users, online adaptation; the prosthetic-skin interface: insole force to servo positions | [iir], [tile], [limb] |
+//! | 6 | [`analysis`] | a material's measured response: conditioning, strikes, the RMS strike spectrum | [iir] |
+//! | 7 | [`physical`] | a hammer striking a surface of damped modes (Hunt-Crossley contact); aggregates as Poisson micro-impacts; parameters estimated from recordings | [iir], [tile] |
+//! | 8 | [`material`] | the material model, the versioned library file, the built-in presets, fit quality, the evaluation of renders | [iir] |
+//! | 9 | [`synthesis`] | a material's modes at the audio rate; the voice with its per-step perturbation | [iir] |
+//! | 10 | [`engine`] | N channels in real time: lock-free events, no allocation in the callback; offline renders | |
 //! | 11 | [`io`] | inputs (CSV replay, serial, OSC, gait) and outputs (WAV, audio devices), each device behind a feature | |
-//! | 12 | [`live`] | a live session: an input, the engine and an output, with its status | |
-//! | 13 | [`export`], [`sim`] | a library as a C99 header for firmware; simulators of devices, users and boards for tests and `--device simulated` | |
+//! | 12 | [`export`], [`sim`], [`fuzzing`] | a library as a C99 header for firmware; simulators of devices, users and boards for tests and `--device simulated`; the fuzz targets (hidden) | |
 //!
 //! Units are types ([`units`]): a [`SampleRate`](units::SampleRate) is not a
 //! [`Hz`](units::Hz), and neither is a bare `f64`.

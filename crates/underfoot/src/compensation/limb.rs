@@ -21,7 +21,7 @@
 //!
 //! [`fit_limb`] fits `20 log10 |level · H_u(f)|` to a measured magnitude in dB (the loaded
 //! response over the unloaded one) by bounded least squares
-//! ([trust-region-reflective](crate::fit::trf)) in the logarithms of the three parameters,
+//! ([trust-region-reflective](crate::numeric::trf)) in the logarithms of the three parameters,
 //! with the logarithms of [`LimbBounds`] as bounds: the parameters span decades, and in
 //! log space a unit step means the same relative change for each. The level (in dB) is a
 //! free, unbounded fourth parameter by default, because the accelerometer's units are
@@ -76,8 +76,8 @@ use serde::{Deserialize, Serialize};
 
 use super::CompensationError;
 use super::sweep::{Device, SimulatedTile, TileConfig};
-use crate::fit::roots;
-use crate::fit::trf::{LeastSquares, TrfOptions, TrfSolution, least_squares_bounded};
+use crate::numeric::roots;
+use crate::numeric::trf::{LeastSquares, TrfOptions, TrfSolution, least_squares_bounded};
 use crate::signal::{Biquad, Sos, butterworth};
 use crate::units::{Band, Hz, SampleRate, Seconds};
 
@@ -247,7 +247,7 @@ impl LimbModel {
     fn analog_sections(&self) -> Result<[AnalogSection; 2], CompensationError> {
         self.validate()?;
         let num = self.numerator();
-        let r = roots::roots(&num).ok_or(CompensationError::Unstable {
+        let r = roots(&num).ok_or(CompensationError::Unstable {
             what: "the numerator of H_u could not be factored",
         })?;
         // With positive coefficients a real cubic has at least one (negative) real root.
@@ -368,32 +368,12 @@ fn scale(sections: &mut [Biquad], k: f64) {
 
 /// `c` of `s = c (1 − z⁻¹)/(1 + z⁻¹)`, chosen so that `f` maps to itself.
 fn bilinear_constant(rate: SampleRate, f: Hz) -> Result<f64, CompensationError> {
-    if !(f.0.is_finite() && f.0 > 0.0 && f.0 < rate.nyquist().0) {
-        return Err(invalid("prewarp", f.0, "0 < f < Nyquist"));
-    }
-    let w = 2.0 * PI * f.0;
-    Ok(w / (w / (2.0 * rate.hz())).tan())
+    crate::numeric::prewarp_constant(rate, f).ok_or_else(|| invalid("prewarp", f.0, "0 < f < Nyquist"))
 }
 
-/// The bilinear transform of `num(s)/den(s)`, coefficients of `[s², s, 1]`. A first-order
-/// ratio (both `s²` coefficients zero) stays first-order rather than gaining a cancelling
-/// pole-zero pair at `z = −1`, which would sit on the unit circle.
+/// The bilinear transform of `num(s)/den(s)` as a biquad (see [`crate::numeric::bilinear`]).
 fn bilinear(num: [f64; 3], den: [f64; 3], c: f64) -> Result<Biquad, CompensationError> {
-    let first = num[0] == 0.0 && den[0] == 0.0;
-    let map = |[p2, p1, p0]: [f64; 3]| {
-        if first {
-            [p1 * c + p0, p0 - p1 * c, 0.0]
-        } else {
-            let c2 = c * c;
-            [
-                p2 * c2 + p1 * c + p0,
-                2.0 * (p0 - p2 * c2),
-                p2 * c2 - p1 * c + p0,
-            ]
-        }
-    };
-    let (b, a) = (map(num), map(den));
-    Biquad::from_row([b[0], b[1], b[2], a[0], a[1], a[2]]).ok_or(CompensationError::Unstable {
+    Biquad::from_row(crate::numeric::bilinear(num, den, c)).ok_or(CompensationError::Unstable {
         what: "a bilinear section has a zero leading denominator coefficient",
     })
 }

@@ -35,7 +35,7 @@ pub mod limb;
 pub mod sweep;
 pub mod table;
 
-use crate::fit::trf::TrfError;
+use crate::numeric::trf::TrfError;
 
 /// What is wrong with a compensation setting or measurement.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -369,7 +369,7 @@ impl Sweep {
                 *hj = w * ir[(self.n_fft + j - pre) % self.n_fft];
             }
             for (a, &om) in acc.iter_mut().zip(&omegas) {
-                *a += dtft(&h, om) * Complex64::from_polar(1.0, om * pre as f64);
+                *a += crate::numeric::dtft(&h, om) * Complex64::from_polar(1.0, om * pre as f64);
             }
         }
         let k = 1.0 / self.cfg.repeats as f64;
@@ -411,22 +411,6 @@ fn spectrum(x: &[f64], n: usize) -> Vec<Complex64> {
     let mut out = fwd.make_output_vec();
     let _ = fwd.process(&mut buf, &mut out);
     out
-}
-
-/// `Σ h[n] e^{-jωn}`, the phasor advanced by rotation and renormalised now and then so its
-/// round-off does not grow with the length.
-fn dtft(h: &[f64], omega: f64) -> Complex64 {
-    let step = Complex64::from_polar(1.0, -omega);
-    let mut z = Complex64::new(1.0, 0.0);
-    let mut sum = Complex64::new(0.0, 0.0);
-    for (i, &v) in h.iter().enumerate() {
-        sum += z * v;
-        z *= step;
-        if i % 1024 == 1023 {
-            z = Complex64::from_polar(1.0, -omega * (i + 1) as f64);
-        }
-    }
-    sum
 }
 
 /// A complex frequency response on a set of frequencies.
@@ -594,22 +578,18 @@ pub struct SimulatedTile {
 }
 
 /// The bilinear transform of `(b2 s^2 + b1 s + b0) / (a2 s^2 + a1 s + a0)`, `s` normalised
-/// to `f0`, prewarped so `f0` lands exactly.
-fn bilinear(b: [f64; 3], a: [f64; 3], f0: f64, rate: SampleRate) -> Biquad {
-    let k = (PI * f0 / rate.hz()).tan();
-    let k2 = k * k;
-    let map = |[c2, c1, c0]: [f64; 3]| {
-        [
-            c2 + c1 * k + c0 * k2,
-            2.0 * (c0 * k2 - c2),
-            c2 - c1 * k + c0 * k2,
-        ]
-    };
-    let (nb, na) = (map(b), map(a));
-    Biquad {
-        b: [nb[0] / na[0], nb[1] / na[0], nb[2] / na[0]],
-        a: [1.0, na[1] / na[0], na[2] / na[0]],
-    }
+/// to `f0`, prewarped so `f0` lands exactly: [`crate::numeric::bilinear`] with
+/// `c = 1 / tan(π f0 / fs)` ([`warped`](crate::numeric::bilinear::warped)), the
+/// prewarping constant of `s / (2π f0)`.
+fn bilinear(
+    b: [f64; 3],
+    a: [f64; 3],
+    f0: f64,
+    rate: SampleRate,
+) -> Result<Biquad, CompensationError> {
+    let c = 1.0 / crate::numeric::bilinear::warped(Hz(f0), rate);
+    Biquad::from_row(crate::numeric::bilinear(b, a, c))
+        .ok_or_else(|| invalid("frequency", f0, "0 < f < Nyquist"))
 }
 
 impl SimulatedTile {
@@ -640,7 +620,7 @@ impl SimulatedTile {
                 [1.0, 1.0 / (a * m.q), 1.0],
                 m.freq.0,
                 rate,
-            ));
+            )?);
         }
         if !freq_ok(cfg.suspension) {
             return Err(invalid("suspension", cfg.suspension.0, "0 < f < Nyquist"));
@@ -653,7 +633,7 @@ impl SimulatedTile {
             [1.0, 1.0 / cfg.suspension_q, 1.0],
             cfg.suspension.0,
             rate,
-        ));
+        )?);
         if !freq_ok(cfg.highpass) {
             return Err(invalid("highpass", cfg.highpass.0, "0 < f < Nyquist"));
         }

@@ -23,6 +23,7 @@ use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 
 use super::{FitError, Target};
+use crate::numeric::solve_scaled;
 use crate::units::{Hz, SampleRate};
 
 /// Levi's fit of a numerator of degree `nb` and denominator of degree `na` with per-point
@@ -117,34 +118,6 @@ pub fn magnitude_on(b: &[f64], a: &[f64], rate: SampleRate, freqs: &[Hz]) -> Vec
             (eval_poly(b, w) / eval_poly(a, w)).norm()
         })
         .collect()
-}
-
-/// Least squares with unit-norm columns, by SVD.
-pub(crate) fn solve_scaled(
-    mut m: DMatrix<f64>,
-    rhs: &DVector<f64>,
-) -> Result<DVector<f64>, FitError> {
-    let mut scale = vec![1.0; m.ncols()];
-    for (j, s) in scale.iter_mut().enumerate() {
-        let n = m.column(j).norm();
-        if n > 0.0 {
-            *s = 1.0 / n;
-            m.column_mut(j).scale_mut(*s);
-        }
-    }
-    if rhs.iter().any(|v| !v.is_finite()) {
-        return Err(FitError::Numerical("a least-squares target is not finite"));
-    }
-    let svd = super::svd(m).map_err(FitError::Numerical)?;
-    let tol = svd.singular_values.max() * 1e-13;
-    let mut x = svd.solve(rhs, tol).map_err(FitError::Numerical)?;
-    for (xi, s) in x.iter_mut().zip(&scale) {
-        *xi *= s;
-    }
-    if x.iter().any(|v| !v.is_finite()) {
-        return Err(FitError::Numerical("least-squares solution is not finite"));
-    }
-    Ok(x)
 }
 
 #[cfg(test)]

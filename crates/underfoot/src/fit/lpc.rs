@@ -250,7 +250,7 @@ fn least_squares(m: DMatrix<f64>, rhs: &DVector<f64>) -> Result<DVector<f64>, Lp
     if rhs.iter().any(|v| !v.is_finite()) {
         return Err(LpcError::Numerical("a least-squares target is not finite"));
     }
-    let svd = super::svd(m).map_err(LpcError::Numerical)?;
+    let svd = crate::numeric::svd(m).map_err(|e| LpcError::Numerical(e.0))?;
     let tol = svd.singular_values.max() * SVD_TOLERANCE;
     let x = svd.solve(rhs, tol).map_err(LpcError::Numerical)?;
     if x.iter().any(|v| !v.is_finite()) {
@@ -348,7 +348,7 @@ pub fn modes_with(
         Method::MinimumNorm => minimum_norm_poles(signal, order)?,
         _ => {
             let pred = predictor(signal, order, method)?;
-            super::roots::roots(&pred.coefficients)
+            crate::numeric::roots(&pred.coefficients)
                 .ok_or(LpcError::Numerical("predictor roots did not converge"))?
         }
     };
@@ -388,7 +388,7 @@ fn minimum_norm_poles(x: &[f64], order: usize) -> Result<Vec<Complex64>, LpcErro
     let rows = x.len() - len;
     let m = DMatrix::from_fn(rows, len, |i, k| x[i + k + 1]);
     let rhs = DVector::from_fn(rows, |i, _| -x[i]);
-    let svd = super::svd(m).map_err(LpcError::Numerical)?;
+    let svd = crate::numeric::svd(m).map_err(|e| LpcError::Numerical(e.0))?;
     let (Some(u), Some(v_t)) = (&svd.u, &svd.v_t) else {
         return Err(LpcError::Numerical("SVD without singular vectors"));
     };
@@ -414,7 +414,7 @@ fn minimum_norm_poles(x: &[f64], order: usize) -> Result<Vec<Complex64>, LpcErro
     while poly.len() > 1 && poly.last() == Some(&0.0) {
         poly.pop();
     }
-    let zeros = super::roots::roots(&poly)
+    let zeros = crate::numeric::roots(&poly)
         .ok_or(LpcError::Numerical("predictor roots did not converge"))?;
     Ok(zeros
         .into_iter()

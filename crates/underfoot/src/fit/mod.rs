@@ -42,22 +42,21 @@
 //! Every fit also records the plain Levi fit at the same order, so that a report can show
 //! what the refinements bought.
 //!
-//! [`trf`] is a general bounded non-linear least-squares solver (trust-region-reflective),
-//! used where a fit has a few physical parameters with bounds, such as the limb model of
-//! [`crate::compensation::limb`].
+//! The general numerics a fit uses (the guarded SVD, polynomial roots, bounded least
+//! squares) are in [`crate::numeric`], shared with the stages that are not IIR fits.
 //!
-//! **Bounded iterations.** Every iterative routine here stops: the SVDs run through one
-//! crate-private `svd`, which refuses a matrix with a non-finite entry (nalgebra's SVD iterates forever
-//! on one) and caps the iterations; the eigenvalue solvers ([`roots`], [`vector_fit`]) cap
-//! theirs; the refinements and [`trf`] cap their steps.
+//! **Bounded iterations.** Every iterative routine here stops: the SVDs run through
+//! [`numeric::svd`](crate::numeric::svd), which refuses a matrix with a non-finite entry
+//! (nalgebra's SVD iterates forever on one) and caps the iterations; the eigenvalue
+//! solvers ([`numeric::roots`](crate::numeric::roots), [`vector_fit`]) cap theirs; the
+//! refinements cap their steps.
 pub mod crumpling;
 pub mod levi;
 pub mod lpc;
 pub mod metrics;
 pub mod refine;
-pub mod roots;
+pub mod reflect;
 pub mod target;
-pub mod trf;
 pub mod vector_fit;
 
 pub use metrics::{MetricGrid, Metrics};
@@ -66,24 +65,6 @@ pub use target::Target;
 
 use crate::signal::Sos;
 use crate::units::{Decibels, SampleRate, Seconds};
-
-/// Most sweeps of the SVD's implicit QR iteration per column: a well-posed matrix needs a
-/// few; a few hundred mean it will not converge.
-const SVD_SWEEPS_PER_COLUMN: usize = 300;
-
-/// The thin SVD of `m`, with its singular vectors, or why there is none: an entry that is
-/// not finite (on which nalgebra's iteration never ends), or no convergence within
-/// [`SVD_SWEEPS_PER_COLUMN`] sweeps per column.
-pub(crate) fn svd(
-    m: nalgebra::DMatrix<f64>,
-) -> Result<nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn>, &'static str> {
-    if m.iter().any(|v| !v.is_finite()) {
-        return Err("a least-squares matrix has a non-finite entry");
-    }
-    let max_iterations = SVD_SWEEPS_PER_COLUMN * (m.nrows().min(m.ncols()) + 1);
-    nalgebra::SVD::try_new(m, true, true, f64::EPSILON, max_iterations)
-        .ok_or("the SVD did not converge")
-}
 
 /// The largest pole radius of a filter at `rate` whose slowest mode decays by `e` in
 /// `longest`: `exp(-1 / (rate * longest))`. `1.0` (stability only) for a non-positive or
@@ -184,6 +165,12 @@ pub enum FitError {
     },
 }
 
+impl From<crate::numeric::NumericalError> for FitError {
+    fn from(e: crate::numeric::NumericalError) -> Self {
+        Self::Numerical(e.0)
+    }
+}
+
 /// The best fit at one order.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OrderFit {
@@ -248,7 +235,7 @@ pub fn fit_order(
     let rho = decay_radius(target.rate, cfg.longest_decay);
     let mut starts: Vec<(&'static str, Sos)> = Vec::new();
     if let Some((b, a)) = &levi_ba {
-        if let Some(s) = roots::ba_to_sos(b, a) {
+        if let Some(s) = crate::signal::zpk::ba_to_sos(b, a) {
             starts.push(("levi", stabilise(&s, rho)));
         }
     }
@@ -256,7 +243,7 @@ pub fn fit_order(
         .clone()
         .map(|start| levi::sanathanan_koerner(target, start, 3))
     {
-        if let Some(s) = roots::ba_to_sos(&b, &a) {
+        if let Some(s) = crate::signal::zpk::ba_to_sos(&b, &a) {
             starts.push(("sanathanan-koerner", stabilise(&s, rho)));
         }
     }
@@ -447,7 +434,7 @@ fn stabilise(sos: &Sos, max_radius: f64) -> Sos {
             if s.is_stable() && poles.iter().all(|p| p.norm() <= inner) {
                 return *s;
             }
-            let (fixed, gain) = roots::reflect_unstable(&poles, inner);
+            let (fixed, gain) = reflect::reflect_unstable(&poles, inner);
             let pair = if s.a[2] == 0.0 {
                 RootPair::Single(fixed[0].re)
             } else if fixed[0].im.abs() > 0.0 {
@@ -466,23 +453,4 @@ fn stabilise(sos: &Sos, max_radius: f64) -> Sos {
         })
         .collect();
     Sos::new(sections)
-}
-
-#[cfg(test)]
-mod svd_tests {
-    use super::svd;
-    use nalgebra::DMatrix;
-
-    #[test]
-    fn svd_refuses_non_finite_entries_instead_of_spinning() {
-        let start = std::time::Instant::now();
-        let m = || DMatrix::from_fn(40, 8, |i, k| ((i * 7 + k * 3) % 11) as f64);
-        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
-            let mut with = m();
-            with[(17, 3)] = bad;
-            assert!(svd(with).is_err(), "{bad}");
-        }
-        assert_eq!(svd(m()).unwrap().singular_values.len(), 8);
-        assert!(start.elapsed() < std::time::Duration::from_secs(5));
-    }
 }

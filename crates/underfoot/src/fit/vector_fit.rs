@@ -27,8 +27,8 @@
 use nalgebra::{DMatrix, DVector, Schur};
 use num_complex::Complex64;
 
-use super::levi::solve_scaled;
-use super::roots::{ba_to_sos, sections_from_roots};
+use crate::numeric::solve_scaled;
+use crate::signal::zpk::{ba_to_sos, sections_from_roots};
 use super::{FitError, Target};
 use crate::signal::Sos;
 use crate::signal::sos::poly_mul;
@@ -179,7 +179,7 @@ fn solve(target: &Target, poles: &[Pole], relocate: bool) -> Result<DVector<f64>
         rhs[2 * i] = w * h.re;
         rhs[2 * i + 1] = w * h.im;
     }
-    solve_scaled(m, &rhs)
+    Ok(solve_scaled(m, &rhs)?)
 }
 
 /// Fits an order-`order` filter by `iterations` pole relocations.

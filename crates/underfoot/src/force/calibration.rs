@@ -21,7 +21,7 @@
 //! ## Fitting the power law
 //!
 //! The fit minimises the squared force error `Σ wᵢ (F(rᵢ) − Lᵢ)²` over `a`, `b`, `r0`
-//! with the bounded trust-region solver of [`crate::fit::trf`]. Force space rather than
+//! with the bounded trust-region solver of [`crate::numeric::trf`]. Force space rather than
 //! log space, because the lab scale's error is additive in newtons (the tile paper reports
 //! ±10 N) and the unloaded readings, whose logarithm does not exist, are the ones that pin
 //! `r0`. Readings and loads are scaled to `[0, 1]` for the solver, so the problem is as
@@ -72,7 +72,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::atomic_file::{AtomicWriteError, OutputFile};
-use crate::fit::trf::{FnResiduals, TrfError, TrfOptions, least_squares_bounded};
+use crate::numeric::trf::{FnResiduals, TrfError, TrfOptions, least_squares_bounded};
 use crate::units::Newtons;
 
 /// The `kind` tag of a calibration file.
@@ -490,7 +490,7 @@ impl SensorCurve {
                 reason: format!("sensor {:?}: no finite rest readings", self.name),
             });
         }
-        self.drift = median(&mut finite) - self.rest_reading();
+        self.drift = crate::numeric::median(&mut finite) - self.rest_reading();
         Ok(self.drift)
     }
 
@@ -574,16 +574,6 @@ fn interpolate(knots: &[[f64; 2]], r: f64) -> f64 {
         .clamp(1, knots.len() - 1);
     let ([r1, f1], [r2, f2]) = (knots[i - 1], knots[i]);
     f1 + (f2 - f1) * (r - r1) / (r2 - r1)
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let m = v.len() / 2;
-    if v.len() % 2 == 1 {
-        v[m]
-    } else {
-        0.5 * (v[m - 1] + v[m])
-    }
 }
 
 /// Spearman's rank correlation, ties given their average rank.
@@ -805,7 +795,7 @@ fn fit_power(
             })
             .collect();
         let abs = res.clone();
-        let sigma = (1.4826 * median(&mut res)).max(1e-9);
+        let sigma = (1.4826 * crate::numeric::median(&mut res)).max(1e-9);
         let k = 1.345 * sigma;
         for (wi, a) in w.iter_mut().zip(&abs) {
             *wi = if *a <= k { 1.0 } else { k / a };

@@ -17,6 +17,17 @@ use core::f64::consts::PI;
 
 use crate::units::{Hz, SampleRate};
 
+/// `tan(π f / fs)`: the analogue frequency (in units of `c`) that the transform with
+/// `c = 1` maps onto the digital frequency `f`. A design in `s / c` prewarps its edges
+/// with it; `1 / warped(f)` is the constant that lands an `s` normalised to `f` on `f`.
+///
+/// [`crate::signal::butterworth`] maps its poles one by one, `z = (1 + s)/(1 − s)`,
+/// rather than the coefficients (precision near `z = 1`), and prewarps with this.
+#[must_use]
+pub fn warped(f: Hz, rate: SampleRate) -> f64 {
+    (PI * f.0 / rate.hz()).tan()
+}
+
 /// `c` of `s = c (1 − z⁻¹)/(1 + z⁻¹)` that maps `f` to itself, or `None` unless
 /// `0 < f < Nyquist`.
 #[must_use]

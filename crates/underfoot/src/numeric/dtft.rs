@@ -45,4 +45,13 @@ mod tests {
             );
         }
     }
+
+    #[test]
+    fn dtft_of_a_decaying_exponential_is_its_closed_form() {
+        let x: Vec<f64> = (0..5000).map(|n| 0.99f64.powi(n)).collect();
+        for w in [0.01, 0.5, 3.0] {
+            let exact = 1.0 / (Complex64::new(1.0, 0.0) - Complex64::from_polar(0.99, -w));
+            assert!((dtft(&x, w) - exact).norm() < 1e-9 * exact.norm());
+        }
+    }
 }

@@ -339,7 +339,7 @@ pub fn calibrate_measured(
         onsets_by_recording.push(onsets);
     }
     let onsets_per_strike = mean(&onset_counts);
-    let half_energy_ms = 1e3 * median(&mut half_energy);
+    let half_energy_ms = 1e3 * crate::numeric::median(&mut half_energy);
     let kind = match cfg.kind {
         KindChoice::Fixed(k) => k,
         KindChoice::Auto if half_energy_ms < 1e3 * cfg.solid_half_energy.0 => GroundKind::Solid,
@@ -412,7 +412,7 @@ pub fn calibrate_measured(
         rate_scale: if rate_scales.is_empty() {
             0.0
         } else {
-            median(&mut rate_scales)
+            crate::numeric::median(&mut rate_scales)
         },
         isolated_impacts,
         model: Vec::new(),
@@ -862,7 +862,7 @@ fn pooled_lpc_modes(
         return Err(CalibrationError::Lpc(LpcError::Silent));
     }
     let pred = levinson_durbin(&r, order)?;
-    let roots = crate::fit::roots::roots(&pred.coefficients)
+    let roots = crate::numeric::roots(&pred.coefficients)
         .ok_or(LpcError::Numerical("predictor roots did not converge"))?;
     let fs = rate.hz();
     let mut modes: Vec<Mode> = roots
@@ -971,7 +971,7 @@ impl GainFit<'_> {
             a.view_mut((0, j), (2 * n, 1)).copy_from(&(c / norms[j]));
             a[(2 * n + j, j)] = ridge;
         }
-        let svd = crate::fit::svd(a).map_err(CalibrationError::Gains)?;
+        let svd = crate::numeric::svd(a).map_err(|e| CalibrationError::Gains(e.0))?;
         let mut phase = self.initial_phase.to_vec();
         let mut best: Option<(f64, Vec<f64>)> = None;
         for _ in 0..PHASE_ROUNDS {
@@ -1073,18 +1073,5 @@ fn mean(x: &[f64]) -> f64 {
         0.0
     } else {
         x.iter().sum::<f64>() / x.len() as f64
-    }
-}
-
-fn median(x: &mut [f64]) -> f64 {
-    if x.is_empty() {
-        return 0.0;
-    }
-    x.sort_by(f64::total_cmp);
-    let m = x.len() / 2;
-    if x.len() % 2 == 0 {
-        0.5 * (x[m - 1] + x[m])
-    } else {
-        x[m]
     }
 }

@@ -618,10 +618,10 @@ impl ResonatorBank {
                 "the first sample of the impulse response is zero",
             ));
         }
-        let zeros = crate::fit::roots::roots(&numerator).ok_or(PhysicalError::Factorisation(
+        let zeros = crate::numeric::roots(&numerator).ok_or(PhysicalError::Factorisation(
             "the root finder did not converge",
         ))?;
-        let mut sections = crate::fit::roots::sections_from_roots(&zeros, &self.pole, lead);
+        let mut sections = crate::signal::zpk::sections_from_roots(&zeros, &self.pole, lead);
         // The numerator has one degree fewer than the denominator: the z^-1 of h[0] = 0.
         // It goes into a section with a spare numerator degree.
         let spare = sections
@@ -674,7 +674,7 @@ mod tests {
         let a = m.svd(true, true).solve(&rhs, 1e-300).unwrap();
         let mut poly = vec![1.0];
         poly.extend(a.iter());
-        let mut found: Vec<(f64, f64)> = crate::fit::roots::roots(&poly)
+        let mut found: Vec<(f64, f64)> = crate::numeric::roots(&poly)
             .unwrap()
             .into_iter()
             .filter(|p| p.im > 0.0)

@@ -111,7 +111,7 @@ pub fn find_onsets(x: &[f64], rate: SampleRate, cfg: &OnsetConfig) -> Vec<usize>
     if peak_env <= 0.0 {
         return Vec::new();
     }
-    let sigma = percentile(&env, cfg.noise_percentile);
+    let sigma = crate::numeric::percentile(&env, cfg.noise_percentile).unwrap_or(0.0);
     let threshold = (peak_env * down(cfg.threshold_below_peak)).max(sigma * up(cfg.noise_margin));
     if threshold > peak_env {
         return Vec::new();
@@ -176,19 +176,6 @@ fn centred_rms(x: &[f64], w: usize) -> Vec<f64> {
             ((prefix[b] - prefix[a]).max(0.0) / (b - a) as f64).sqrt()
         })
         .collect()
-}
-
-/// The `p`-th percentile (nearest rank, `p` in 0..=1) of a non-empty `v`.
-fn percentile(v: &[f64], p: f64) -> f64 {
-    let mut sorted = v.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    let p = if p.is_finite() {
-        p.clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    let rank = (p * (sorted.len() - 1) as f64).round() as usize;
-    sorted[rank.min(sorted.len() - 1)]
 }
 
 /// Step 4 of the module docs: from a detection back to where the strike rises out of

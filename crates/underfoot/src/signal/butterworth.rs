@@ -186,7 +186,7 @@ fn check_order(order: usize) -> Result<(), SignalError> {
 }
 
 fn prewarp(f: Hz, rate: SampleRate) -> f64 {
-    (std::f64::consts::PI * f.0 / rate.hz()).tan()
+    crate::numeric::bilinear::warped(f, rate)
 }
 
 fn prewarp_cutoff(cutoff: Hz, rate: SampleRate) -> Result<f64, SignalError> {

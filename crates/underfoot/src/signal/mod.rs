@@ -19,6 +19,8 @@ pub mod sos;
 pub mod spectrum;
 #[cfg(feature = "std")]
 pub mod wavelet;
+#[cfg(feature = "std")]
+pub mod zpk;
 
 #[cfg(feature = "std")]
 pub use sos::{Biquad, Sos};

@@ -305,7 +305,7 @@ impl ModalFilter {
             a[(base + j, j)] = lambda * norm;
             rhs[base + j] = lambda * norm * current[j];
         }
-        let x = crate::fit::levi::solve_scaled(a, &rhs)
+        let x = crate::numeric::solve_scaled(a, &rhs)
             .map_err(|_| ModalError::Unsolvable("the least-squares system is singular"))?;
         self.set_parameters(x.as_slice());
         Ok(())

@@ -5,7 +5,7 @@
 //! Needs `../shared/data/footsteps` (skipped with a note when absent, unless
 //! `UNDERFOOT_REQUIRE_DATA=1`, as in CI).
 
-mod common;
+use crate::common;
 
 use underfoot::analysis::{AnalysisConfig, condition};
 use underfoot::material::build::{BuildConfig, Progress, build_material};

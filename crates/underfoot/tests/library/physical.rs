@@ -4,7 +4,7 @@
 //! The real-data test needs `../shared/data/footsteps` (skipped with a note when absent,
 //! unless `UNDERFOOT_REQUIRE_DATA=1`).
 
-mod common;
+use crate::common;
 
 use underfoot::material::builtin::builtin;
 use underfoot::material::library::Library;

@@ -1,7 +1,7 @@
 //! Reading recordings: WAV/FLAC/Ogg/CSV decoding against known content, every kind of bad
 //! file, and onset detection on real footsteps.
 
-mod common;
+use crate::common;
 
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};

@@ -38,7 +38,7 @@ fn pty_at(link: &Path) -> TTYPort {
 
 fn spawn(args: &[&str]) -> Child {
     let _guard = SPAWN.lock().unwrap_or_else(PoisonError::into_inner);
-    Command::new(env!("CARGO_BIN_EXE_underfoot"))
+    Command::new(crate::common::bin())
         .args(args)
         .stdin(Stdio::null())
         .stdout(Stdio::piped())

@@ -10,6 +10,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
+use crate::common::{bin};
 
 /// How a run ended: its status code (None if killed at the deadline or by a signal) and
 /// its stderr.
@@ -17,13 +18,6 @@ struct Ended {
     code: Option<i32>,
     stderr: String,
     took: Duration,
-}
-
-fn bin() -> PathBuf {
-    std::env::var_os("UNDERFOOT_TEST_BIN").map_or_else(
-        || PathBuf::from(env!("CARGO_BIN_EXE_underfoot")),
-        PathBuf::from,
-    )
 }
 
 /// Runs the binary with `args` in `dir`, killing it after `deadline`.

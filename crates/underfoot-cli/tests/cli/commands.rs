@@ -2,11 +2,12 @@
 
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use underfoot::material::{FilterCoefficients, FitRecord, Library, MaterialModel, SourceFile};
 use underfoot::signal::{Biquad, Sos};
 use underfoot::units::{Band, Hz, SampleRate};
+use crate::common::{assert_ok, run, s, stderr, stdout};
 
 /// A valid model: one resonant section (poles at radius 0.9) whose fit record is its own
 /// response, so the library accepts it exactly as a fit would have written it.
@@ -63,31 +64,6 @@ fn write_library(dir: &Path, names: &[&str]) -> PathBuf {
     path
 }
 
-fn run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_underfoot"))
-        .args(args)
-        // The fit plot looks for fonts; keep tests independent of the machine's fonts.
-        .env("UNDERFOOT_FONT", "")
-        .output()
-        .expect("run underfoot")
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn assert_ok(o: &Output) {
-    assert!(
-        o.status.success(),
-        "expected success, stderr: {}",
-        stderr(o)
-    );
-}
-
 /// Asserts a failure with status 1 (an error, not a usage mistake) and returns stderr.
 fn assert_error(o: &Output) -> String {
     assert_eq!(
@@ -100,10 +76,6 @@ fn assert_error(o: &Output) -> String {
     let e = stderr(o);
     assert!(e.starts_with("underfoot: error: "), "{e}");
     e
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 temp path")
 }
 
 #[test]
@@ -604,7 +576,7 @@ fn demo_walks_across_every_builtin_material_and_each_stretch_matches_it() {
         let name = seg["material"].as_str().unwrap();
         let a = rate.samples_in(underfoot::units::Seconds(seg["start_s"].as_f64().unwrap()));
         let b = rate.samples_in(underfoot::units::Seconds(seg["end_s"].as_f64().unwrap()));
-        let lsd = underfoot::engine::offline::segment_lsd(
+        let lsd = underfoot::material::evaluate::segment_lsd(
             &samples[a..b.min(samples.len())],
             rate,
             lib.get(name).unwrap(),

@@ -7,7 +7,8 @@
 use std::path::Path;
 use std::process::Command;
 
-use underfoot::export::{self, ExportConfig, c, dft};
+use underfoot::export::{self, ExportConfig, c};
+use underfoot::numeric::dtft;
 use underfoot::material::builtin::builtin;
 use underfoot::safety::{Limiter, LimiterReport};
 use underfoot::signal::fixed::{
@@ -289,7 +290,7 @@ fn exported_c_matches_rust_for_every_builtin_material() {
                 grid.iter()
                     .map(|&f| {
                         let w = model.sample_rate.omega(f);
-                        (20.0 * (dft(&ir, w).norm() / reference.response(w).norm()).log10()).abs()
+                        (20.0 * (dtft(&ir, w).norm() / reference.response(w).norm()).log10()).abs()
                     })
                     .fold(0.0, f64::max)
             };

@@ -11,28 +11,7 @@ use std::time::{Duration, Instant};
 
 use underfoot::material::Library;
 use underfoot::material::builtin::builtin;
-
-/// The binary under test; `UNDERFOOT_TEST_BIN` points these tests at another build
-/// (e.g. main's, to see each of them fail there).
-fn bin() -> String {
-    std::env::var("UNDERFOOT_TEST_BIN").unwrap_or_else(|_| env!("CARGO_BIN_EXE_underfoot").into())
-}
-
-fn run(args: &[&str]) -> Output {
-    Command::new(bin())
-        .args(args)
-        .env("UNDERFOOT_FONT", "")
-        .output()
-        .expect("run underfoot")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("UTF-8 path")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use crate::common::{bin, run, s, stderr};
 
 fn assert_refused(o: &Output, words: &str) {
     assert!(!o.status.success(), "succeeded: {}", stderr(o));

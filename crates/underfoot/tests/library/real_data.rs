@@ -10,7 +10,7 @@
 //! Needs `../shared/data/footsteps` (skipped with a note when absent, unless
 //! `UNDERFOOT_REQUIRE_DATA=1`, as in CI).
 
-mod common;
+use crate::common;
 
 use underfoot::analysis::raw_response;
 use underfoot::fit::metrics::gain_aligned_lsd_db;

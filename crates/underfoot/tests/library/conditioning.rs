@@ -8,7 +8,7 @@
 //! material when `../shared/data/footsteps` is present (skipped with a note otherwise,
 //! unless `UNDERFOOT_REQUIRE_DATA=1`).
 
-mod common;
+use crate::common;
 
 use std::f64::consts::PI;
 

@@ -1,7 +1,7 @@
-//! Polynomial roots and the factorisation of a transfer function into second-order sections.
+//! A transfer function as zeros, poles and gain, factored into second-order sections.
 //!
-//! Roots come from the eigenvalues of the companion matrix (real Schur form), so complex
-//! roots arrive as exact conjugate pairs. Factoring `b(z^-1)` and `a(z^-1)` into sections:
+//! Roots come from [`numeric::roots`](crate::numeric::roots), so complex roots arrive as
+//! exact conjugate pairs. Factoring `b(z^-1)` and `a(z^-1)` into sections:
 //!
 //! $$ b(z^{-1}) = b_{d}\, z^{-d} \prod_i (1 - q_i z^{-1}) $$
 //!
@@ -10,37 +10,13 @@
 //! nearest remaining zeros (the pairing that keeps each section's gain moderate, as in the
 //! usual zpk-to-sos rule), sections closest to the unit circle first.
 
-use nalgebra::{DMatrix, Schur};
 use num_complex::Complex64;
 
+use crate::numeric::roots;
 use crate::signal::{Biquad, Sos};
 
 /// Below this imaginary part (relative to the modulus) a root is taken as real.
 const REAL_TOL: f64 = 1e-9;
-
-/// The roots in `z` of `c[0] z^m + c[1] z^(m-1) + ... + c[m]`, i.e. of the `z^-1` polynomial
-/// `c[0] + c[1] z^-1 + ... + c[m] z^-m`. Leading zeros of `c` must have been stripped.
-///
-/// Returns `None` when the eigenvalue iteration does not converge or a coefficient is not finite.
-#[must_use]
-pub fn roots(c: &[f64]) -> Option<Vec<Complex64>> {
-    let m = c.len().saturating_sub(1);
-    if m == 0 {
-        return Some(Vec::new());
-    }
-    if c.iter().any(|v| !v.is_finite()) || c[0] == 0.0 {
-        return None;
-    }
-    let mut comp = DMatrix::<f64>::zeros(m, m);
-    for j in 0..m {
-        comp[(0, j)] = -c[j + 1] / c[0];
-    }
-    for i in 1..m {
-        comp[(i, i - 1)] = 1.0;
-    }
-    let schur = Schur::try_new(comp, f64::EPSILON, 100_000)?;
-    Some(schur.complex_eigenvalues().iter().copied().collect())
-}
 
 /// Splits roots into conjugate pairs (by the member with positive imaginary part) and reals.
 fn split(roots: &[Complex64]) -> (Vec<Complex64>, Vec<f64>) {
@@ -204,51 +180,9 @@ fn quad_root_upper(d: &[f64; 3]) -> Complex64 {
     if r1.im >= r2.im { r1 } else { r2 }
 }
 
-/// Reflects poles outside the unit circle to `1/conj(p)`, which keeps the magnitude
-/// response's shape (up to a constant gain per reflected pole, compensated here).
-///
-/// Used only to make a linear initial guess usable; the refinements never leave the
-/// stable region in the first place.
-#[must_use]
-pub fn reflect_unstable(poles: &[Complex64], max_radius: f64) -> (Vec<Complex64>, f64) {
-    let mut gain = 1.0;
-    let out = poles
-        .iter()
-        .map(|&p| {
-            let r = p.norm();
-            if r >= 1.0 {
-                // |1 - p e^{-jw}| = |p| |1 - (1/p*) e^{-jw}|: compensate |p|.
-                gain /= r;
-                let q = 1.0 / p.conj();
-                if q.norm() > max_radius {
-                    q * (max_radius / q.norm())
-                } else {
-                    q
-                }
-            } else if r > max_radius {
-                p * (max_radius / r)
-            } else {
-                p
-            }
-        })
-        .collect();
-    (out, gain)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn roots_of_known_polynomial() {
-        // (z - 0.5)(z^2 - 1.6z + 0.89) -> roots 0.5, 0.8 +- 0.5j
-        let c = crate::signal::sos::poly_mul(&[1.0, -0.5], &[1.0, -1.6, 0.89]);
-        let mut r = roots(&c).unwrap();
-        r.sort_by(|x, y| x.im.total_cmp(&y.im));
-        assert!((r[0] - Complex64::new(0.8, -0.5)).norm() < 1e-12);
-        assert!((r[1] - Complex64::new(0.5, 0.0)).norm() < 1e-12);
-        assert!((r[2] - Complex64::new(0.8, 0.5)).norm() < 1e-12);
-    }
 
     #[test]
     fn ba_to_sos_reproduces_response_with_delays() {

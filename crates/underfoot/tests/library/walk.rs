@@ -1,7 +1,8 @@
 //! A walk across every built-in material, rendered by the engine and analysed with the
 //! fitting pipeline: each material's stretch has that material's measured response.
 
-use underfoot::engine::offline::{render, segment_lsd, walk_across};
+use underfoot::engine::offline::{render, walk_across};
+use underfoot::material::evaluate::segment_lsd;
 use underfoot::engine::{EngineConfig, MaterialBank};
 use underfoot::force::gait::{GaitConfig, nominal_step};
 use underfoot::material::builtin::builtin;

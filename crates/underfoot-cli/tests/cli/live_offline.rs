@@ -9,18 +9,11 @@
 //! sample of that.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
+use crate::common::{run};
 
 const RATE: f64 = 48_000.0;
 const WALK: &str = "steps=6,channels=1";
-
-fn underfoot(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_underfoot"))
-        .args(args)
-        .env("UNDERFOOT_FONT", "")
-        .output()
-        .expect("run underfoot")
-}
 
 fn ok(o: &Output) -> String {
     assert!(
@@ -79,7 +72,7 @@ fn run_plays_the_walk_as_render_does_for_buffers_16_to_1024() {
     let dir = tempfile::tempdir().expect("tempdir");
     let offline_path = dir.path().join("offline.wav");
     let offline_path_str = offline_path.to_str().unwrap().to_string();
-    ok(&underfoot(&[
+    ok(&run(&[
         "render",
         "--material",
         "gravel",
@@ -100,7 +93,7 @@ fn run_plays_the_walk_as_render_does_for_buffers_16_to_1024() {
             let handle = std::thread::spawn({
                 let path = path.clone();
                 move || {
-                    underfoot(&[
+                    run(&[
                         "run",
                         "--material",
                         "gravel",
@@ -161,7 +154,7 @@ fn run_plays_the_walk_as_render_does_for_buffers_16_to_1024() {
 fn run_to_null_strikes_and_peaks_as_render_does() {
     let dir = tempfile::tempdir().expect("tempdir");
     let out = dir.path().join("offline.wav");
-    let offline = ok(&underfoot(&[
+    let offline = ok(&run(&[
         "render",
         "--material",
         "gravel",
@@ -170,7 +163,7 @@ fn run_to_null_strikes_and_peaks_as_render_does() {
         "--out",
         out.to_str().unwrap(),
     ]));
-    let live = ok(&underfoot(&[
+    let live = ok(&run(&[
         "run",
         "--material",
         "gravel",

@@ -4,7 +4,7 @@
 //! Needs `../shared/data/footsteps` (skipped with a note when absent, unless
 //! `UNDERFOOT_REQUIRE_DATA=1`, as in CI).
 
-mod common;
+use crate::common;
 
 use underfoot::material::build::{BuildConfig, build_material};
 use underfoot::material::builtin::builtin;

@@ -1,0 +1,14 @@
+//! The command line's tests, in one binary: each module runs the `underfoot` binary as a
+//! user would and checks what it prints and writes.
+//!
+//! `UNDERFOOT_TEST_BIN` points them at another build of the binary (main's, say, to see
+//! a new test fail there first).
+
+mod common;
+
+mod bounds;
+mod commands;
+mod files;
+mod live_offline;
+mod serial_link;
+mod silence;
