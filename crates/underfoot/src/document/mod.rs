@@ -1,6 +1,7 @@
 //! One way to store a document: every JSON file the project writes (a material
 //! library, a sensor calibration, a measured response, an equalizer, a limb model, a
-//! table of users, an interface configuration) goes through this layer.
+//! table of users) goes through this layer, and every CSV table it reads (force tracks,
+//! sensor-calibration sessions, data-logger recordings) through its [`csv`] reader.
 //!
 //! # The header
 //!
@@ -59,6 +60,7 @@
 //! ```
 
 mod body;
+pub mod csv;
 mod error;
 
 use std::path::Path;
