@@ -58,6 +58,25 @@
 //! [tile]: #references
 //! [limb]: #references
 //!
+//! # Vocabulary
+//!
+//! A few words mean one thing each here.
+//!
+//! - **calibrate**: measure a physical device so that its readings or its output can be
+//!   trusted: a force sensor's curve from known loads ([`force::calibration`]), a tile's
+//!   response from sweeps and the equalizer that flattens it, a user's limb
+//!   ([`compensation`]; the command line's `calibrate` subcommands).
+//! - **estimate**: find a physical model's parameters from recordings
+//!   ([`physical::estimate`]).
+//! - **fit**: find a filter (or a curve) that matches measured data ([`fit`]).
+//! - **normalise**: set a drive's gain from a nominal step, so every material is played
+//!   at the level it was recorded at ([`synthesis`]).
+//! - **voice**: what plays one channel's material ([`synthesis::voice`]); a physical
+//!   aggregate's concurrent micro-impacts are *impacts*, not voices.
+//! - **channel**: one actuator with its own force sensors: a tile, or one foot.
+//! - **strike**: a heel strike in a recording; **step**: a heel strike detected in force
+//!   readings while playing.
+//!
 //! # Firmware (`no_std`)
 //!
 //! With default features off (`cargo build -p underfoot --no-default-features`) the

@@ -48,7 +48,7 @@
 //! **Bounded iterations.** Every iterative routine here stops: the SVDs run through
 //! [`numeric::svd`](crate::numeric::svd), which refuses a matrix with a non-finite entry
 //! (nalgebra's SVD iterates forever on one) and caps the iterations; the eigenvalue
-//! solvers ([`numeric::roots`](crate::numeric::roots), [`vector_fit`]) cap theirs; the
+//! solvers ([`numeric::roots`](crate::numeric::roots()), [`vector_fit`]) cap theirs; the
 //! refinements cap their steps.
 pub mod crumpling;
 pub mod levi;

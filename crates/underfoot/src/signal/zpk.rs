@@ -1,6 +1,6 @@
 //! A transfer function as zeros, poles and gain, factored into second-order sections.
 //!
-//! Roots come from [`numeric::roots`](crate::numeric::roots), so complex roots arrive as
+//! Roots come from [`numeric::roots`](crate::numeric::roots()), so complex roots arrive as
 //! exact conjugate pairs. Factoring `b(z^-1)` and `a(z^-1)` into sections:
 //!
 //! $$ b(z^{-1}) = b_{d}\, z^{-d} \prod_i (1 - q_i z^{-1}) $$

@@ -1,0 +1,239 @@
+//! The audio half: renders into the buffer it is given, applying each event at its frame;
+//! never allocates, locks, blocks or panics.
+
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+
+use crate::safety::{Fader, LimiterReport};
+use crate::synthesis::PreparedMaterial;
+use crate::units::SampleRate;
+
+use super::channel::Channel;
+use super::clock::SensorClock;
+use super::controller::Command;
+use super::{Event, OutputStage, Telemetry};
+
+/// The audio half. Move it into the audio callback.
+pub struct Engine {
+    pub(super) rate: SampleRate,
+    pub(super) channels: Vec<Channel>,
+    // Boxed so that a replacement is a pointer swap on the audio thread, and the old one
+    // goes back to the controller to be freed there.
+    #[expect(
+        clippy::vec_box,
+        reason = "materials are swapped by pointer and freed elsewhere"
+    )]
+    pub(super) bank: Vec<Box<PreparedMaterial>>,
+    /// One per channel: compensation, watchdog, gain and fade, limiter.
+    pub(super) stages: Vec<OutputStage>,
+    pub(super) fader: Fader,
+    pub(super) gain: f32,
+    pub(super) frame: u64,
+    /// Events waiting for their frame, sorted by frame; capacity fixed at build.
+    pub(super) pending: Vec<(u64, Event)>,
+    pub(super) commands: rtrb::Consumer<Command>,
+    pub(super) retired: rtrb::Producer<Box<PreparedMaterial>>,
+    pub(super) telemetry: Arc<Telemetry>,
+    pub(super) scratch: Vec<f32>,
+    pub(super) peak: f32,
+    pub(super) clock: SensorClock,
+}
+
+impl Engine {
+    /// Renders `out.len() / device_channels` frames into `out`, interleaved.
+    ///
+    /// Never allocates, locks, blocks or panics. A buffer whose length is not a multiple
+    /// of `device_channels` has its trailing partial frame zeroed.
+    pub fn process(&mut self, out: &mut [f32], device_channels: usize) {
+        if device_channels == 0 {
+            return;
+        }
+        let frames = out.len() / device_channels;
+        self.drain_commands(frames);
+        out[frames * device_channels..].fill(0.0);
+        let mut done = 0;
+        while done < frames {
+            let now = self.frame;
+            self.apply_due(now);
+            let until_event = self
+                .pending
+                .first()
+                .map_or(u64::MAX, |(at, _)| at.saturating_sub(now));
+            let n = (frames - done)
+                .min(self.scratch.len())
+                .min(usize::try_from(until_event).unwrap_or(usize::MAX))
+                .max(1);
+            self.render(
+                &mut out[done * device_channels..(done + n) * device_channels],
+                device_channels,
+            );
+            done += n;
+        }
+        self.publish();
+    }
+
+    /// The engine's rate.
+    #[must_use]
+    pub fn rate(&self) -> SampleRate {
+        self.rate
+    }
+
+    /// Number of channels.
+    #[must_use]
+    pub fn channels(&self) -> usize {
+        self.channels.len()
+    }
+
+    /// Frames rendered so far (the engine's clock).
+    #[must_use]
+    pub fn frame(&self) -> u64 {
+        self.frame
+    }
+
+    fn drain_commands(&mut self, frames: usize) {
+        while let Ok(command) = self.commands.pop() {
+            match command {
+                Command::Event(e) => match e.at.or_else(|| self.sensor_frame(&e.event, frames)) {
+                    Some(at) if at > self.frame => {
+                        if self.pending.len() < self.pending.capacity() {
+                            // Stable: events for the same frame keep their order.
+                            let i = self.pending.partition_point(|(f, _)| *f <= at);
+                            self.pending.insert(i, (at, e.event));
+                        } else {
+                            self.telemetry.dropped.fetch_add(1, Ordering::Relaxed);
+                            self.apply(e.event);
+                        }
+                    }
+                    Some(at) => {
+                        if at < self.frame {
+                            self.telemetry.late.fetch_add(1, Ordering::Relaxed);
+                        }
+                        self.apply(e.event);
+                    }
+                    None => self.apply(e.event),
+                },
+                Command::Replace(slot, material) => {
+                    if let Some(old) = self.bank.get_mut(usize::from(slot)) {
+                        let old = std::mem::replace(old, material);
+                        if let Err(rtrb::PushError::Full(old)) = self.retired.push(old) {
+                            // Never free on the audio thread: leak rather than deallocate.
+                            std::mem::forget(old);
+                        }
+                    }
+                }
+                Command::Stop => self.fader.fade_out(),
+            }
+        }
+    }
+
+    /// The frame the sensor clock gives a stamped force reading sent without one.
+    fn sensor_frame(&mut self, event: &Event, frames: usize) -> Option<u64> {
+        let Event::Force { reading, .. } = event else {
+            return None;
+        };
+        // A non-finite reading is rejected when applied, and must not move the clock.
+        let time = reading.time().filter(|_| reading.is_finite())?;
+        Some(self.clock.frame_of(time.0, self.frame, frames))
+    }
+
+    fn apply_due(&mut self, now: u64) {
+        let due = self.pending.partition_point(|(f, _)| *f <= now);
+        for i in 0..due {
+            let event = self.pending[i].1;
+            self.apply(event);
+        }
+        self.pending.drain(..due);
+    }
+
+    fn apply(&mut self, event: Event) {
+        let frame = self.frame;
+        let index = usize::from(event.channel());
+        let (Some(channel), Some(stage)) =
+            (self.channels.get_mut(index), self.stages.get_mut(index))
+        else {
+            self.telemetry.count_rejected();
+            return;
+        };
+        match event {
+            Event::Force { reading, .. } => {
+                if channel.force(&reading, frame, &self.telemetry) {
+                    stage.feed();
+                }
+            }
+            Event::Step { intensity, .. } => {
+                if channel.step(intensity, &self.telemetry) {
+                    stage.feed_step();
+                }
+            }
+            Event::Material { slot, .. } => match self.bank.get(usize::from(slot)) {
+                Some(m) => channel.set_material(slot, m),
+                None => self.telemetry.count_rejected(),
+            },
+        }
+    }
+
+    fn render(&mut self, out: &mut [f32], device_channels: usize) {
+        let n = out.len() / device_channels;
+        out.fill(0.0);
+        let mut resets = 0;
+        let mut report = LimiterReport::default();
+        // The fader is shared by all channels: compute its gains once.
+        let fade = &mut self.scratch[..n];
+        for g in fade.iter_mut() {
+            *g = self.fader.tick() * self.gain;
+        }
+        let mut channel_buf = [0.0f32; 64];
+        for (c, (channel, stage)) in self
+            .channels
+            .iter_mut()
+            .zip(self.stages.iter_mut())
+            .enumerate()
+        {
+            // Render in sub-blocks through a stack buffer: no per-channel output storage.
+            // A channel without a device channel still runs, so its state stays in time.
+            let mut start = 0;
+            while start < n {
+                let len = (n - start).min(channel_buf.len());
+                let buf = &mut channel_buf[..len];
+                resets += channel.render(buf);
+                // A channel that is not played runs its stage to keep it in time, but
+                // what its limiter does is nobody's concern.
+                let mut unplayed = LimiterReport::default();
+                let counted = if c < device_channels {
+                    &mut report
+                } else {
+                    &mut unplayed
+                };
+                resets += stage.process(buf, &fade[start..start + len], counted);
+                if c < device_channels {
+                    for (i, v) in buf.iter().enumerate() {
+                        self.peak = self.peak.max(v.abs());
+                        out[(start + i) * device_channels + c] = *v;
+                    }
+                }
+                start += len;
+            }
+        }
+        self.frame += n as u64;
+        let t = &self.telemetry;
+        t.non_finite
+            .fetch_add(u64::from(resets + report.non_finite), Ordering::Relaxed);
+        t.limited
+            .fetch_add(u64::from(report.limited), Ordering::Relaxed);
+    }
+
+    fn publish(&mut self) {
+        let t = &self.telemetry;
+        t.frames.store(self.frame, Ordering::Relaxed);
+        t.peak_bits.store(self.peak.to_bits(), Ordering::Relaxed);
+        t.stopped.store(self.fader.is_silent(), Ordering::Relaxed);
+        if let Some(anchor) = self.clock.anchor() {
+            t.anchor_time_bits
+                .store(anchor.time.0.to_bits(), Ordering::Relaxed);
+            t.anchor_frame.store(anchor.frame, Ordering::Relaxed);
+        }
+        t.resyncs.store(self.clock.resyncs(), Ordering::Relaxed);
+        let trips: u64 = self.stages.iter().map(OutputStage::watchdog_trips).sum();
+        t.watchdog_trips.store(trips, Ordering::Relaxed);
+    }
+}
