@@ -7,7 +7,7 @@
 //! shows the candidates.
 //!
 //! Opening a device asks it for its configurations and hands them to the pure
-//! [`choose_config`](super::choose::choose_config).
+//! [`choose_config`].
 
 use std::str::FromStr;
 
