@@ -46,6 +46,7 @@
 //! the calibration file (named by `curve`, or by its own name), `[insole]
 //! newtons_per_count`. A `curve` that the file lacks is an error, never a silent fallback.
 //!
+//! Every error names the file, the key (`servo[1].range_us`) and, where known, the line.
 //!
 //! | file | what it does |
 //! |---|---|

@@ -216,7 +216,7 @@ pub fn choose_config(
 }
 
 /// Preference among PCM formats, best first; `None` for formats that cannot carry PCM.
-pub(super) fn format_rank(format: SampleFormat) -> Option<usize> {
+fn format_rank(format: SampleFormat) -> Option<usize> {
     PREFERENCE.iter().position(|&f| f == format)
 }
 
