@@ -212,7 +212,7 @@ fn jack_dummy_server_is_paced_in_real_time() {
     let audio_seconds = (callbacks * u64::from(buffer)) as f64 / rate.hz();
     let pace = audio_seconds / elapsed.as_secs_f64();
     let latency = stats
-        .output_latency
+        .latency
         .map_or("none".to_string(), |l| format!("{:.3} ms", l.0 * 1e3));
     println!(
         "JACK: {callbacks} callbacks x {buffer} frames = {audio_seconds:.3} s of audio in \
@@ -234,7 +234,7 @@ fn jack_dummy_server_is_paced_in_real_time() {
     assert_eq!(stats.max_callback_frames, u64::from(buffer));
     assert_eq!(stats.frames, RENDERED.load(Ordering::Relaxed));
     assert_eq!(stats.stream_errors, 0, "stream errors: {stats:?}");
-    assert!(stats.output_latency.is_some(), "no latency estimate");
+    assert!(stats.latency.is_some(), "no latency estimate");
     assert_eq!(
         AUDIO_THREAD_ALLOCATIONS.load(Ordering::Relaxed),
         0,
@@ -318,7 +318,7 @@ fn jack_latency_from_threshold_crossing_to_first_output_sample() {
     assert_ne!(callback, u64::MAX, "the step never reached the output");
     let wait = callback.saturating_sub(sent) as f64 * 1e-9;
     let in_buffer = ONSET_FRAME.load(Ordering::Relaxed) as f64 / rate.hz();
-    let device = stats.output_latency.map_or(0.0, |l| l.0);
+    let device = stats.latency.map_or(0.0, |l| l.0);
     let total = wait + in_buffer + device;
     println!(
         "latency: {:.2} ms to the callback + {:.2} ms into its buffer + {:.2} ms device = {:.2} ms",

@@ -46,12 +46,13 @@ use underfoot::force::scale::CountScale;
 use underfoot::force::track::ForceTrack;
 use underfoot::interface::config::InterfaceConfig;
 use underfoot::io::osc::OscSource;
-use underfoot::io::prosthetic::{self, ProstheticHost, SimulatorHandle};
+use underfoot::io::prosthetic::ProstheticHost;
 use underfoot::io::replay::ReplaySource;
 use underfoot::io::serial::{SerialConfig, SerialSource};
 use underfoot::io::spec::{self, InputSpec, OutputSpec, SpecError};
 use underfoot::io::wav::{WavFormat, WavSink};
 use underfoot::io::{Backoff, EventSource, LinkEvent, SourceState};
+use underfoot::sim::{SimulatorHandle, open_interface};
 use underfoot::units::{Decibels, SampleRate, Seconds};
 
 use crate::commands::synth::SynthArgs;
@@ -403,7 +404,7 @@ fn open_input(args: &RunArgs) -> anyhow::Result<(Input, Option<usize>, bool)> {
     if let Some(path) = &args.interface {
         let config = InterfaceConfig::load(path)?;
         let channels = config.channels.len();
-        let (host, sim) = prosthetic::open(&config)?;
+        let (host, sim) = open_interface(&config)?;
         let ends = sim.is_some();
         eprintln!(
             "underfoot: interface {}: {} insole sensor(s), {} servo(s) at {} Hz, {} vibration \
@@ -610,7 +611,7 @@ impl Output {
                     s.callbacks,
                     s.late_callbacks,
                     s.xruns,
-                    s.output_latency
+                    s.latency
                         .map_or("unknown".to_string(), |l| format!("{:.2} ms", l.0 * 1e3))
                 ))
             }

@@ -11,7 +11,7 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use serialport::{SerialPort, TTYPort};
-use underfoot::io::serial::ReferenceSender;
+use underfoot::sim::ReferenceSender;
 
 /// Held while a pseudo-terminal is made and while a child is started: serialport opens
 /// the master without close-on-exec, and a child that inherited another test's master

@@ -8,7 +8,7 @@
 //! | [`config`] | the `prosthetic.toml` file: sensors and their scales, servos, vibration channels, link |
 //!
 //! Nothing here does I/O or needs a cargo feature. The serial link to the interface's
-//! board (the servo-target frame, the host loop and the simulated foot) is in
-//! `io::serial` and `io::prosthetic`, behind the `serial` feature.
+//! board (the servo-target frame and the host loop) is in `io::serial` and
+//! `io::prosthetic`, behind the `serial` feature; the simulated foot is in `sim`.
 pub mod config;
 pub mod servo;

@@ -6,7 +6,7 @@
 //! |---|---|---|
 //! | `replay` | `replay` | force from a CSV track, at real-time pace |
 //! | `serial` | `serial` | force from a microcontroller over a serial port (framed binary protocol) |
-//! | `serial` | `prosthetic` | the prosthetic-skin interface: insole frames in, servo frames out; its simulated board |
+//! | `serial` | `prosthetic` | the prosthetic-skin interface: insole frames in, servo frames out (its simulated board is in `sim`) |
 //! | `osc` | `osc` | force, steps and material changes from OSC over UDP (a VR engine) |
 //! | `wav` | `wav` | vibration to a WAV file |
 //! | `audio` | `audio` | vibration to an audio device through cpal (ALSA; JACK with `jack`) |

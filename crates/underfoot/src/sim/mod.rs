@@ -5,5 +5,20 @@
 //! tile, a prosthesis, a sound card or a person: a device with a known response, a user
 //! with a known limb, a board speaking the sensor protocol, an audio loop.
 //!
+//! | simulator | what it stands in for |
+//! |---|---|
+//! | [`ReferenceSender`] ([`sensor_board`]) | a sensor board's firmware: force frames of the serial protocol, written to any port |
+//! | [`SimulatedFoot`] ([`prosthetic_board`]) | the prosthetic-skin interface's board: an insole under one walking foot, and servos that follow the host's frames; [`open_interface`] runs it on a pseudo-terminal |
+//!
 //! Layer: at the top of the crate, beside the fuzzing harness; no production module
 //! depends on it.
+
+#[cfg(feature = "serial")]
+pub mod prosthetic_board;
+#[cfg(feature = "serial")]
+pub mod sensor_board;
+
+#[cfg(feature = "serial")]
+pub use prosthetic_board::{SimulatedFoot, SimulatedReport, SimulatorHandle, open_interface};
+#[cfg(feature = "serial")]
+pub use sensor_board::ReferenceSender;

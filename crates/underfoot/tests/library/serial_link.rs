@@ -13,8 +13,9 @@ use std::time::{Duration, Instant};
 use serialport::{SerialPort, TTYPort};
 use underfoot::force::scale::CountScale;
 use underfoot::interface::config::InterfaceConfig;
-use underfoot::io::serial::{Frame, FrameDecoder, ReferenceSender, SerialConfig, SerialSource};
-use underfoot::io::{EventSource, LinkEvent, SourceState, prosthetic};
+use underfoot::io::serial::{Frame, FrameDecoder, SerialConfig, SerialSource};
+use underfoot::io::{EventSource, LinkEvent, SourceState};
+use underfoot::sim::{ReferenceSender, open_interface};
 
 /// A pseudo-terminal whose slave is reachable at `link`, a symlink re-pointed to each
 /// new one: a device that comes back at the same path.
@@ -200,7 +201,7 @@ fn a_hung_up_interface_port_is_waited_on_and_reopened() {
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("ttyIF");
     let (master, slave) = pty_at(&link);
-    let (mut host, sim) = prosthetic::open(&interface_config(&link, 50)).expect("open");
+    let (mut host, sim) = open_interface(&interface_config(&link, 50)).expect("open");
     assert!(sim.is_none());
     drop(slave);
     let mut sender = ReferenceSender::new(master);
@@ -251,7 +252,7 @@ fn the_servo_heartbeat_keeps_its_period_when_the_poll_loop_stalls() {
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("ttyHB");
     let (mut board, slave) = pty_at(&link);
-    let (mut host, _) = prosthetic::open(&interface_config(&link, 10)).expect("open");
+    let (mut host, _) = open_interface(&interface_config(&link, 10)).expect("open");
     drop(slave);
     board.set_timeout(Duration::from_millis(5)).unwrap();
     let stop = Arc::new(AtomicBool::new(false));

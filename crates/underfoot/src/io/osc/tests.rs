@@ -1,0 +1,342 @@
+use super::*;
+use crate::signal::noise::SplitMix64;
+use proptest::prelude::*;
+use rosc::{OscBundle, OscTime};
+use std::time::Instant;
+
+fn msg(addr: &str, args: Vec<OscType>) -> OscPacket {
+    OscPacket::Message(OscMessage {
+        addr: addr.to_string(),
+        args,
+    })
+}
+
+fn bundle(content: Vec<OscPacket>) -> OscPacket {
+    OscPacket::Bundle(OscBundle {
+        timetag: OscTime::from((0, 1)),
+        content,
+    })
+}
+
+fn bytes(p: &OscPacket) -> Vec<u8> {
+    rosc::encoder::encode(p).unwrap()
+}
+
+fn names() -> Vec<String> {
+    ["gravel", "snow", "wood"].map(String::from).to_vec()
+}
+
+fn decoded(d: &OscDecoder, datagram: &[u8]) -> Vec<Result<Event, OscReject>> {
+    let mut v = Vec::new();
+    d.decode(datagram, &mut |r| v.push(r));
+    v
+}
+
+fn force(channel: u16, newtons: &[f32]) -> Event {
+    Event::Force {
+        channel,
+        reading: SensorReading::new(newtons).unwrap(),
+    }
+}
+
+/// Good packets and the events they should make.
+fn good() -> Vec<(OscPacket, Vec<Event>)> {
+    use OscType::{Double, Float, Int, Long, String as Str};
+    vec![
+        (
+            msg(FORCE_ADDRESS, vec![Int(1), Float(612.5)]),
+            vec![force(1, &[612.5])],
+        ),
+        (
+            msg(FORCE_ADDRESS, vec![Float(0.0), Int(300), Double(2.5)]),
+            vec![force(0, &[300.0, 2.5])],
+        ),
+        (
+            msg(STEP_ADDRESS, vec![Int(1)]),
+            vec![Event::Step {
+                channel: 1,
+                intensity: 1.0,
+            }],
+        ),
+        (
+            msg(STEP_ADDRESS, vec![Long(0), Int(2)]),
+            vec![Event::Step {
+                channel: 0,
+                intensity: 2.0,
+            }],
+        ),
+        (
+            msg(MATERIAL_ADDRESS, vec![Int(1), Str("wood".into())]),
+            vec![Event::Material {
+                channel: 1,
+                slot: 2,
+            }],
+        ),
+        (
+            bundle(vec![
+                msg(MATERIAL_ADDRESS, vec![Int(0), Str("snow".into())]),
+                bundle(vec![msg(STEP_ADDRESS, vec![Int(0), Float(0.5)])]),
+                msg(FORCE_ADDRESS, vec![Int(0), Float(1.0), Float(2.0)]),
+            ]),
+            vec![
+                Event::Material {
+                    channel: 0,
+                    slot: 1,
+                },
+                Event::Step {
+                    channel: 0,
+                    intensity: 0.5,
+                },
+                force(0, &[1.0, 2.0]),
+            ],
+        ),
+    ]
+}
+
+fn nested(levels: usize) -> OscPacket {
+    let mut p = msg(STEP_ADDRESS, vec![OscType::Int(0)]);
+    for _ in 0..levels {
+        p = bundle(vec![p]);
+    }
+    p
+}
+
+/// Malformed datagrams, each to be rejected once, and the reason.
+fn malformed() -> Vec<(&'static str, Vec<u8>, OscReject)> {
+    use OscType::{Float, Int, String as Str};
+    let mut noise = SplitMix64::new(7);
+    let random: Vec<u8> = (0..97).map(|_| noise.next_u64() as u8).collect();
+    let mut truncated = bytes(&msg(FORCE_ADDRESS, vec![Int(0), Float(1.0)]));
+    truncated.truncate(truncated.len() - 3);
+    vec![
+        ("random bytes", random, OscReject::NotOsc),
+        ("empty", vec![], OscReject::NotOsc),
+        ("truncated", truncated, OscReject::NotOsc),
+        (
+            "unknown address",
+            bytes(&msg("/underfoot/jump", vec![Int(0)])),
+            OscReject::UnknownAddress,
+        ),
+        (
+            "force as a string",
+            bytes(&msg(FORCE_ADDRESS, vec![Int(0), Str("heavy".into())])),
+            OscReject::Arguments,
+        ),
+        (
+            "force without a value",
+            bytes(&msg(FORCE_ADDRESS, vec![Int(0)])),
+            OscReject::Arguments,
+        ),
+        (
+            "nine sensors",
+            bytes(&msg(
+                FORCE_ADDRESS,
+                std::iter::once(Int(0))
+                    .chain(std::iter::repeat_n(Float(1.0), 9))
+                    .collect(),
+            )),
+            OscReject::Arguments,
+        ),
+        (
+            "channel as a string",
+            bytes(&msg(STEP_ADDRESS, vec![Str("0".into())])),
+            OscReject::Arguments,
+        ),
+        (
+            "fractional channel",
+            bytes(&msg(STEP_ADDRESS, vec![Float(0.5)])),
+            OscReject::Arguments,
+        ),
+        (
+            "channel too high",
+            bytes(&msg(STEP_ADDRESS, vec![Int(2)])),
+            OscReject::Channel(2),
+        ),
+        (
+            "negative channel",
+            bytes(&msg(FORCE_ADDRESS, vec![Int(-1), Float(1.0)])),
+            OscReject::Channel(-1),
+        ),
+        (
+            "unknown material",
+            bytes(&msg(MATERIAL_ADDRESS, vec![Int(0), Str("lava".into())])),
+            OscReject::UnknownMaterial,
+        ),
+        (
+            "material as a slot number",
+            bytes(&msg(MATERIAL_ADDRESS, vec![Int(0), Int(1)])),
+            OscReject::Arguments,
+        ),
+        (
+            "NaN force",
+            bytes(&msg(
+                FORCE_ADDRESS,
+                vec![Int(0), Float(1.0), Float(f32::NAN)],
+            )),
+            OscReject::Value,
+        ),
+        (
+            "infinite force",
+            bytes(&msg(FORCE_ADDRESS, vec![Int(0), OscType::Double(1e300)])),
+            OscReject::Value,
+        ),
+        (
+            "negative intensity",
+            bytes(&msg(STEP_ADDRESS, vec![Int(0), Float(-1.0)])),
+            OscReject::Value,
+        ),
+        ("bundles too deep", bytes(&nested(20)), OscReject::TooDeep),
+    ]
+}
+
+#[test]
+fn good_packets_make_the_right_events() {
+    let d = OscDecoder::new(names(), 2).unwrap();
+    for (packet, want) in good() {
+        let got = decoded(&d, &bytes(&packet));
+        assert_eq!(
+            got,
+            want.into_iter().map(Ok).collect::<Vec<_>>(),
+            "{packet:?}"
+        );
+    }
+    assert_eq!(decoded(&d, &bytes(&nested(MAX_BUNDLE_DEPTH))).len(), 1);
+}
+
+#[test]
+fn malformed_packets_say_why() {
+    let d = OscDecoder::new(names(), 2).unwrap();
+    for (what, datagram, why) in malformed() {
+        assert_eq!(decoded(&d, &datagram), vec![Err(why)], "{what}");
+    }
+    // A bad message in a bundle costs only itself.
+    let mixed = bundle(vec![
+        msg(STEP_ADDRESS, vec![OscType::Int(5)]),
+        msg(STEP_ADDRESS, vec![OscType::Int(1)]),
+    ]);
+    let got = decoded(&d, &bytes(&mixed));
+    assert_eq!(got[0], Err(OscReject::Channel(5)));
+    assert!(got[1].is_ok());
+    // Bytes after a message make the packet suspect.
+    let mut trailing = bytes(&msg(STEP_ADDRESS, vec![OscType::Int(1)]));
+    trailing.extend([0, 0, 0, 0]);
+    assert_eq!(decoded(&d, &trailing), vec![Err(OscReject::NotOsc)]);
+}
+
+#[test]
+fn bad_tables_are_refused() {
+    assert!(OscDecoder::new(names(), 0).is_err());
+    assert!(OscDecoder::new(names(), MAX_INDEX + 1).is_err());
+    assert!(OscDecoder::new(vec![String::new(); MAX_INDEX + 1], 1).is_err());
+    assert!(matches!(
+        OscSource::bind("127.0.0.1:0", names(), 0),
+        Err(IoError::Unsupported { .. })
+    ));
+    assert!(matches!(
+        OscSource::bind("not an address", names(), 1),
+        Err(IoError::Open { .. })
+    ));
+}
+
+/// Polls until `n` events arrived or a second passed.
+fn receive(source: &mut OscSource, n: usize) -> Vec<Event> {
+    let mut events = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(2);
+    while events.len() < n && Instant::now() < deadline {
+        let state = source
+            .poll(Duration::from_millis(20), &mut |e| events.push(e))
+            .unwrap();
+        assert_eq!(state, SourceState::Open);
+    }
+    events
+}
+
+#[test]
+fn udp_round_trip() {
+    let mut source = OscSource::bind("127.0.0.1:0", names(), 2).unwrap();
+    let to = source.local_addr().unwrap();
+    let sender = UdpSocket::bind("127.0.0.1:0").unwrap();
+
+    // Nothing sent: a poll waits about its timeout and returns empty.
+    let start = Instant::now();
+    let mut none = 0;
+    source
+        .poll(Duration::from_millis(30), &mut |_| none += 1)
+        .unwrap();
+    assert_eq!(none, 0);
+    assert!(start.elapsed() >= Duration::from_millis(25));
+    // A zero timeout does not wait at all.
+    source.poll(Duration::ZERO, &mut |_| none += 1).unwrap();
+    assert_eq!(none, 0);
+
+    let mut want = Vec::new();
+    for (packet, events) in good() {
+        sender.send_to(&bytes(&packet), to).unwrap();
+        want.extend(events);
+    }
+    assert_eq!(receive(&mut source, want.len()), want);
+    assert_eq!(source.stats().events, want.len() as u64);
+    assert_eq!(source.stats().rejected, 0);
+
+    let bad = malformed();
+    for (_, datagram, _) in &bad {
+        sender.send_to(datagram, to).unwrap();
+    }
+    let after = msg(STEP_ADDRESS, vec![OscType::Int(1), OscType::Float(0.25)]);
+    sender.send_to(&bytes(&after), to).unwrap();
+    let got = receive(&mut source, 1);
+    assert_eq!(
+        got,
+        vec![Event::Step {
+            channel: 1,
+            intensity: 0.25
+        }]
+    );
+    let stats = source.stats();
+    eprintln!(
+        "osc: {} good datagrams, {} malformed; {} events, {} rejected",
+        good().len() + 1,
+        bad.len(),
+        stats.events,
+        stats.rejected
+    );
+    assert_eq!(stats.rejected, bad.len() as u64);
+    assert_eq!(stats.events, want.len() as u64 + 1);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    #[test]
+    fn random_datagrams_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
+        let d = OscDecoder::new(names(), 2).unwrap();
+        d.decode(&bytes, &mut |_| {});
+    }
+
+    #[test]
+    fn damaged_packets_never_panic(
+        which in 0usize..6,
+        edits in proptest::collection::vec((any::<usize>(), any::<u8>()), 1..8),
+        cut in any::<usize>(),
+    ) {
+        let d = OscDecoder::new(names(), 2).unwrap();
+        let mut datagram = bytes(&good()[which].0);
+        for (at, b) in edits {
+            let n = datagram.len();
+            datagram[at % n] = b;
+        }
+        datagram.truncate(cut % (datagram.len() + 1));
+        let mut events = 0;
+        d.decode(&datagram, &mut |r| {
+            if let Ok(e) = r {
+                events += 1;
+                // Whatever got through is within the table.
+                assert!(usize::from(e.channel()) < 2);
+                if let Event::Force { reading, .. } = e {
+                    assert!(reading.is_finite());
+                }
+            }
+        });
+        prop_assert!(events <= 3);
+    }
+}
