@@ -55,7 +55,7 @@ use toml::Spanned;
 
 use super::servo::{PulseWidth, ServoCalibration, ServoConfig, ServoError};
 use crate::force::MAX_SENSORS;
-use crate::force::calibration::{CalibrationError, SensorCalibration};
+use crate::force::calibration::{SensorCalibration, SensorCalibrationError};
 use crate::force::gait::GaitConfig;
 use crate::force::scale::{CountScale, SensorScale};
 use crate::units::{Hz, Newtons, Seconds};
@@ -106,7 +106,7 @@ pub enum ConfigError {
         /// The configuration file.
         path: PathBuf,
         /// The calibration's error (it names its own file).
-        source: CalibrationError,
+        source: SensorCalibrationError,
     },
 }
 
@@ -311,7 +311,7 @@ impl InterfaceConfig {
     pub fn parse(
         text: &str,
         path: &Path,
-        calibration: impl FnOnce(&str) -> Result<SensorCalibration, CalibrationError>,
+        calibration: impl FnOnce(&str) -> Result<SensorCalibration, SensorCalibrationError>,
     ) -> Result<Self, ConfigError> {
         let raw: RawFile = toml::from_str(text).map_err(|e| ConfigError::Syntax {
             path: path.to_path_buf(),
@@ -718,7 +718,7 @@ gait = "steps=4"
 
     fn parse(text: &str) -> Result<InterfaceConfig, ConfigError> {
         InterfaceConfig::parse(text, Path::new("p.toml"), |name| {
-            Err(CalibrationError::Tare {
+            Err(SensorCalibrationError::Tare {
                 reason: format!("no file {name} in this test"),
             })
         })
