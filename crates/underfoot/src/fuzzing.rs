@@ -29,7 +29,7 @@ use std::path::Path;
 use crate::compensation::files::{self, EqualizerFile, LimbFile, ResponseFile};
 use crate::compensation::table::{TableFile, UserEntry, UserTable};
 use crate::force::calibration::{
-    CurveKind, FILE_KIND, SensorCalibration, fit_sensor, session_from_csv_str,
+    CurveKind, LEGACY_FILE_KIND, SensorCalibration, fit_sensor, session_from_csv_str,
 };
 use crate::force::gait::{GaitConfig, generate};
 use crate::force::track::ForceTrack;
@@ -398,7 +398,9 @@ fn run_calibration_json(data: &[u8]) {
     let Ok(calibration) = SensorCalibration::from_json_str(&text(data), "fuzz") else {
         return;
     };
-    let again = SensorCalibration::from_json_str(&calibration.to_json(), "fuzz, saved");
+    let again = calibration
+        .to_json()
+        .and_then(|text| SensorCalibration::from_json_str(&text, "fuzz, saved"));
     assert!(
         again.is_ok(),
         "a loaded calibration does not reload: {again:?}"
@@ -406,12 +408,16 @@ fn run_calibration_json(data: &[u8]) {
 }
 
 fn seeds_calibration_json() -> Vec<Vec<u8>> {
-    let documented = format!(
-        "{{\"kind\": \"{FILE_KIND}\", \"version\": 1,\n \"sensors\": [{{\"name\": \"heel\", \
+    let documented = "{\"format\": \"underfoot.sensor-calibration/1\",\n \"sensors\": [{\"name\": \
+                      \"heel\", \"model\": {\"power\": {\"a\": 0.012, \"b\": 1.4, \"r0\": 200.0}},\n \
+                      \"raw_range\": [190.0, 3500.0], \"drift\": 0.0}]}\n";
+    // A file written before the format tag: the old header must keep loading.
+    let legacy = format!(
+        "{{\"kind\": \"{LEGACY_FILE_KIND}\", \"version\": 1,\n \"sensors\": [{{\"name\": \"heel\", \
          \"model\": {{\"power\": {{\"a\": 0.012, \"b\": 1.4, \"r0\": 200.0}}}},\n \
          \"raw_range\": [190.0, 3500.0], \"drift\": 0.0}}]}}\n"
     );
-    vec![documented.into_bytes()]
+    vec![documented.as_bytes().to_vec(), legacy.into_bytes()]
 }
 
 // ---- compensation files: response, equalizer, limb model, user table (JSON) ----

@@ -8,7 +8,40 @@
 //! curve, clamped to the range it was fitted over. [`CountScale`] is either, and scales a
 //! whole frame into a caller's buffer, so the poll thread allocates nothing per frame.
 
-use super::calibration::{ApplyStats, SensorCalibration, SensorCurve};
+use super::calibration::{ApplyStats, CurveError, SensorCalibration, SensorCurve};
+
+/// What is wrong with a [`CountScale`] for a frame.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ScaleError {
+    /// A factor that is not positive and finite.
+    #[error(
+        "{}: newtons per count must be positive and finite, not {factor}",
+        sensor.map_or_else(|| "every sensor".to_owned(), |i| format!("sensor {i}"))
+    )]
+    Factor {
+        /// The sensor, or `None` for the one factor of every sensor.
+        sensor: Option<usize>,
+        /// The factor.
+        factor: f32,
+    },
+    /// A per-sensor scale of another length than the frame.
+    #[error("{scales} sensor scale(s) for {sensors} sensor(s) per frame")]
+    Count {
+        /// Scales given.
+        scales: usize,
+        /// Sensors per frame.
+        sensors: usize,
+    },
+    /// A calibration curve that cannot be applied.
+    #[error("sensor {sensor}: the calibration: {curve}")]
+    Curve {
+        /// The sensor, by its place in the frame.
+        sensor: usize,
+        /// What is wrong with its curve.
+        curve: CurveError,
+    },
+}
 
 /// How one sensor's raw count becomes newtons.
 #[derive(Debug, Clone, PartialEq)]
@@ -51,35 +84,33 @@ impl CountScale {
     /// Checks the factors and curves against a frame of `sensors` counts.
     ///
     /// # Errors
-    /// A sentence saying what is wrong: a factor that is not positive and finite, an
-    /// invalid curve, or a per-sensor scale whose length is not `sensors`.
-    pub fn check(&self, sensors: usize) -> Result<(), String> {
-        let factor = |f: f32, what: &str| {
+    /// [`ScaleError`]: a factor that is not positive and finite, an invalid curve, or a
+    /// per-sensor scale whose length is not `sensors`.
+    pub fn check(&self, sensors: usize) -> Result<(), ScaleError> {
+        let factor = |f: f32, sensor: Option<usize>| {
             if f.is_finite() && f > 0.0 {
                 Ok(())
             } else {
-                Err(format!(
-                    "{what}: newtons per count must be positive and finite, not {f}"
-                ))
+                Err(ScaleError::Factor { sensor, factor: f })
             }
         };
         match self {
-            Self::Uniform { newtons_per_count } => factor(*newtons_per_count, "every sensor"),
+            Self::Uniform { newtons_per_count } => factor(*newtons_per_count, None),
             Self::PerSensor(scales) => {
                 if scales.len() != sensors {
-                    return Err(format!(
-                        "{} sensor scale(s) for {sensors} sensor(s) per frame",
-                        scales.len()
-                    ));
+                    return Err(ScaleError::Count {
+                        scales: scales.len(),
+                        sensors,
+                    });
                 }
                 for (i, s) in scales.iter().enumerate() {
                     match s {
                         SensorScale::Linear { newtons_per_count } => {
-                            factor(*newtons_per_count, &format!("sensor {i}"))?;
+                            factor(*newtons_per_count, Some(i))?;
                         }
                         SensorScale::Curve(curve) => curve
-                            .validate("the calibration")
-                            .map_err(|e| format!("sensor {i}: {e}"))?,
+                            .check()
+                            .map_err(|curve| ScaleError::Curve { sensor: i, curve })?,
                     }
                 }
                 Ok(())

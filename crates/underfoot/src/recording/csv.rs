@@ -1,8 +1,9 @@
 //! Data-logger CSV files: one column of numbers, logged at a known rate.
 //!
-//! Format accepted: comma-separated, fields trimmed of surrounding whitespace, blank lines
-//! and lines starting with `#` ignored, an optional UTF-8 byte-order mark. Only the first
-//! row may be a header.
+//! Format accepted: the project's one table dialect ([`crate::document::csv`]):
+//! comma-separated, fields trimmed of surrounding whitespace, blank lines and lines
+//! starting with `#` ignored, an optional UTF-8 byte-order mark, and line numbers in
+//! errors that count every line. Only the first row may be a header.
 //!
 //! Which column holds the signal ([`CsvSpec::column`]):
 //!
@@ -21,8 +22,10 @@
 //! through here and rejected with their row index by the common checks in
 //! [`read_bytes`](super::read_bytes).
 
-use super::{CsvSpec, MAX_RECORDING_FRAMES, RecordingError};
 use std::path::Path;
+
+use super::{CsvSpec, MAX_RECORDING_FRAMES, RecordingError};
+use crate::document::csv::records;
 
 /// Reads the `spec.column` column of a CSV file held in memory.
 pub(crate) fn read_column(
@@ -36,26 +39,15 @@ pub(crate) fn read_column(
         column,
         reason,
     };
-    let bytes = bytes
-        .strip_prefix(b"\xEF\xBB\xBF".as_slice())
-        .unwrap_or(bytes);
-    let mut reader = ::csv::ReaderBuilder::new()
-        .has_headers(false)
-        .flexible(true)
-        .trim(::csv::Trim::All)
-        .comment(Some(b'#'))
-        .from_reader(bytes);
-
     let mut samples = Vec::new();
     // Set from the first row: (column index, number of fields per row).
     let mut layout: Option<(usize, usize)> = None;
     let wanted = spec.column.trim();
-    for record in reader.records() {
-        let record = record.map_err(|e| {
-            let line = e.position().map_or(0, ::csv::Position::line);
-            csv_err(line, None, format!("not readable as CSV ({e})"))
-        })?;
-        let line = record.position().map_or(0, ::csv::Position::line);
+    for record in records(bytes) {
+        let record = record
+            .map_err(|e| csv_err(e.line, None, format!("not readable as CSV ({})", e.message)))?;
+        let line = record.line;
+        let record = record.as_strs();
         let (column, width) = match layout {
             Some(l) => l,
             None => {
@@ -63,21 +55,20 @@ pub(crate) fn read_column(
                 let is_header = record.iter().any(|f| f.parse::<f64>().is_err());
                 if let Some(k) = record
                     .iter()
-                    .position(|f| f == wanted)
+                    .position(|&f| f == wanted)
                     .filter(|_| is_header)
                 {
                     layout = Some((k, width));
                     continue;
                 }
                 let Ok(k) = wanted.parse::<usize>() else {
-                    let header: Vec<&str> = record.iter().collect();
                     return Err(csv_err(
                         line,
                         None,
                         format!(
                             "no column named '{wanted}' in the first row [{}], and it is not a \
                              0-based column index",
-                            header.join(", ")
+                            record.join(", ")
                         ),
                     ));
                 };
@@ -106,7 +97,7 @@ pub(crate) fn read_column(
                 ),
             ));
         }
-        let field = &record[column];
+        let field = record[column];
         let value = field.parse::<f64>().map_err(|_| {
             csv_err(
                 line,

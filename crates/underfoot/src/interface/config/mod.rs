@@ -60,7 +60,7 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use crate::document::FileError;
-use crate::force::calibration::{CalibrationError, SensorCalibration};
+use crate::force::calibration::{SensorCalibration, SensorCalibrationError};
 use crate::force::scale::CountScale;
 use crate::interface::servo::ServoConfig;
 use crate::units::{Hz, Seconds};
@@ -119,7 +119,7 @@ pub enum ConfigError {
         /// The configuration file.
         path: PathBuf,
         /// The calibration's error (it names its own file).
-        source: CalibrationError,
+        source: SensorCalibrationError,
     },
 }
 
@@ -175,7 +175,7 @@ impl InterfaceConfig {
     pub fn parse(
         text: &str,
         path: &Path,
-        calibration: impl FnOnce(&str) -> Result<SensorCalibration, CalibrationError>,
+        calibration: impl FnOnce(&str) -> Result<SensorCalibration, SensorCalibrationError>,
     ) -> Result<Self, ConfigError> {
         let raw: raw::RawFile = toml::from_str(text).map_err(|e| ConfigError::Syntax {
             path: path.to_path_buf(),

@@ -11,7 +11,7 @@ use toml::Spanned;
 
 use super::raw::{RawInsole, RawSensor};
 use super::{ConfigError, MAX_INSOLE_SENSORS, Source, factor_ok};
-use crate::force::calibration::{CalibrationError, SensorCalibration};
+use crate::force::calibration::{SensorCalibration, SensorCalibrationError};
 use crate::force::scale::{CountScale, SensorScale};
 
 /// One insole sensor.
@@ -49,7 +49,7 @@ pub(super) fn resolve(
     insole: Option<Spanned<RawInsole>>,
     raw_sensors: &[Spanned<RawSensor>],
     link_span: &Range<usize>,
-    calibration: impl FnOnce(&str) -> Result<SensorCalibration, CalibrationError>,
+    calibration: impl FnOnce(&str) -> Result<SensorCalibration, SensorCalibrationError>,
     at: &Source<'_>,
 ) -> Result<Insole, ConfigError> {
     let (insole, insole_span) = match insole {

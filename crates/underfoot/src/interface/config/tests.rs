@@ -41,7 +41,7 @@ gait = "steps=4"
 
 fn parse(text: &str) -> Result<InterfaceConfig, ConfigError> {
     InterfaceConfig::parse(text, Path::new("p.toml"), |name| {
-        Err(CalibrationError::Tare {
+        Err(SensorCalibrationError::Tare {
             reason: format!("no file {name} in this test"),
         })
     })

@@ -111,7 +111,7 @@ impl ProstheticHost {
         config
             .scale
             .check(config.frame_sensors)
-            .map_err(unsupported)?;
+            .map_err(|e| unsupported(e.to_string()))?;
         let bank = ServoBank::new(
             config.servos.clone(),
             config.frame_sensors,

@@ -50,7 +50,7 @@ pub(super) fn check_config(config: &SerialConfig) -> Result<usize, String> {
             "{sensors} sensors in the layout, a frame carries at most {MAX_FRAME_SENSORS}"
         ));
     }
-    config.scale.check(sensors)?;
+    config.scale.check(sensors).map_err(|e| e.to_string())?;
     Ok(sensors)
 }
 
