@@ -368,7 +368,8 @@ fn scale(sections: &mut [Biquad], k: f64) {
 
 /// `c` of `s = c (1 − z⁻¹)/(1 + z⁻¹)`, chosen so that `f` maps to itself.
 fn bilinear_constant(rate: SampleRate, f: Hz) -> Result<f64, CompensationError> {
-    crate::numeric::prewarp_constant(rate, f).ok_or_else(|| invalid("prewarp", f.0, "0 < f < Nyquist"))
+    crate::numeric::prewarp_constant(rate, f)
+        .ok_or_else(|| invalid("prewarp", f.0, "0 < f < Nyquist"))
 }
 
 /// The bilinear transform of `num(s)/den(s)` as a biquad (see [`crate::numeric::bilinear`]).

@@ -72,7 +72,10 @@ pub fn records(bytes: &[u8]) -> impl Iterator<Item = Result<CsvRecord, CsvError>
             }
             let line_start = b == 0 || matches!(bytes[b - 1], b'\r' | b'\n');
             if b < bytes.len() && bytes[b] == b'#' && line_start {
-                b += bytes[b..].iter().position(|&c| c == b'\n').unwrap_or(bytes.len() - b);
+                b += bytes[b..]
+                    .iter()
+                    .position(|&c| c == b'\n')
+                    .unwrap_or(bytes.len() - b);
             } else {
                 break;
             }
@@ -81,24 +84,26 @@ pub fn records(bytes: &[u8]) -> impl Iterator<Item = Result<CsvRecord, CsvError>
         counted.0 = b;
         counted.1
     };
-    reader.into_records().filter_map(move |record| match record {
-        Err(e) => Some(Err(CsvError {
-            line: line_at(e.position()),
-            message: e.to_string(),
-        })),
-        Ok(record) => {
-            // The reader's own comment rule needs `#` in the first column; an indented
-            // comment, and a line of blanks (one empty field), are skipped here.
-            let first = record.get(0).unwrap_or("");
-            if first.starts_with('#') || (record.len() == 1 && first.is_empty()) {
-                return None;
+    reader
+        .into_records()
+        .filter_map(move |record| match record {
+            Err(e) => Some(Err(CsvError {
+                line: line_at(e.position()),
+                message: e.to_string(),
+            })),
+            Ok(record) => {
+                // The reader's own comment rule needs `#` in the first column; an indented
+                // comment, and a line of blanks (one empty field), are skipped here.
+                let first = record.get(0).unwrap_or("");
+                if first.starts_with('#') || (record.len() == 1 && first.is_empty()) {
+                    return None;
+                }
+                Some(Ok(CsvRecord {
+                    line: line_at(record.position()),
+                    fields: record.iter().map(str::to_owned).collect(),
+                }))
             }
-            Some(Ok(CsvRecord {
-                line: line_at(record.position()),
-                fields: record.iter().map(str::to_owned).collect(),
-            }))
-        }
-    })
+        })
 }
 
 #[cfg(test)]
@@ -128,7 +133,10 @@ mod tests {
 
     #[test]
     fn quoted_fields_are_unquoted() {
-        assert_eq!(rows("\"x, y\",2\n"), vec![(1, vec!["x, y".into(), "2".into()])]);
+        assert_eq!(
+            rows("\"x, y\",2\n"),
+            vec![(1, vec!["x, y".into(), "2".into()])]
+        );
     }
 
     proptest::proptest! {

@@ -91,7 +91,6 @@ pub mod c;
 
 use std::path::Path;
 
-
 use crate::atomic_file::{AtomicWriteError, OutputFile, write_atomic};
 use crate::material::{Library, MaterialModel};
 use crate::numeric::dtft;

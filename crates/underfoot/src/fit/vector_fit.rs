@@ -27,11 +27,11 @@
 use nalgebra::{DMatrix, DVector, Schur};
 use num_complex::Complex64;
 
-use crate::numeric::solve_scaled;
-use crate::signal::zpk::{ba_to_sos, sections_from_roots};
 use super::{FitError, Target};
+use crate::numeric::solve_scaled;
 use crate::signal::Sos;
 use crate::signal::sos::poly_mul;
+use crate::signal::zpk::{ba_to_sos, sections_from_roots};
 
 /// Poles are kept at most this far out during relocation.
 const MAX_RADIUS: f64 = 1.0 - 1e-9;

@@ -8,8 +8,8 @@ use std::path::Path;
 use std::process::Command;
 
 use underfoot::export::{self, ExportConfig, c};
-use underfoot::numeric::dtft;
 use underfoot::material::builtin::builtin;
+use underfoot::numeric::dtft;
 use underfoot::safety::{Limiter, LimiterReport};
 use underfoot::signal::fixed::{
     F32State, Q15State, Q31State, f32_cascade, q15_cascade, q31_cascade, to_q15, to_q31,

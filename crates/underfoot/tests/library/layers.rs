@@ -90,7 +90,10 @@ fn code_only(text: &str) -> String {
             out.push_str("\"\"");
         } else if b[i] == b'\'' && i + 2 < b.len() && (b[i + 2] == b'\'' || b[i + 1] == b'\\') {
             // A character literal ('"' would otherwise open a string).
-            let end = b[i + 1..].iter().position(|&c| c == b'\'').map_or(b.len(), |p| i + 2 + p);
+            let end = b[i + 1..]
+                .iter()
+                .position(|&c| c == b'\'')
+                .map_or(b.len(), |p| i + 2 + p);
             i = end;
             out.push_str("' '");
         } else {
@@ -149,7 +152,11 @@ fn crate_edges(code: &str) -> Vec<String> {
 #[test]
 fn no_crate_path_points_up_the_stack() {
     let order = layer_order();
-    let rank: BTreeMap<&str, usize> = order.iter().enumerate().map(|(i, m)| (m.as_str(), i)).collect();
+    let rank: BTreeMap<&str, usize> = order
+        .iter()
+        .enumerate()
+        .map(|(i, m)| (m.as_str(), i))
+        .collect();
     let src = crate_dir().join("src");
     let mut files = Vec::new();
     sources(&src, &mut files);
@@ -171,7 +178,10 @@ fn no_crate_path_points_up_the_stack() {
             continue;
         }
         let Some(&own) = rank.get(top.as_str()) else {
-            violations.push(format!("{}: module `{top}` is not in lib.rs's layer table", rel.display()));
+            violations.push(format!(
+                "{}: module `{top}` is not in lib.rs's layer table",
+                rel.display()
+            ));
             continue;
         };
         let code = code_only(&fs::read_to_string(file).unwrap());
@@ -193,8 +203,16 @@ fn no_crate_path_points_up_the_stack() {
             }
         }
     }
-    assert!(edges > 100, "only {edges} crate:: edges found: is the scan broken?");
-    assert!(violations.is_empty(), "{} upward edge(s):\n{}", violations.len(), violations.join("\n"));
+    assert!(
+        edges > 100,
+        "only {edges} crate:: edges found: is the scan broken?"
+    );
+    assert!(
+        violations.is_empty(),
+        "{} upward edge(s):\n{}",
+        violations.len(),
+        violations.join("\n")
+    );
 }
 
 #[test]
@@ -207,15 +225,24 @@ fn every_module_of_lib_rs_is_in_the_table_and_the_readme_agrees() {
         .map(|l| l.trim_end_matches(';'))
         .collect();
     for m in &declared {
-        assert!(order.iter().any(|o| o == m), "`pub mod {m}` is missing from the layer table");
+        assert!(
+            order.iter().any(|o| o == m),
+            "`pub mod {m}` is missing from the layer table"
+        );
     }
     for m in &order {
-        assert!(declared.contains(&m.as_str()), "the layer table names `{m}`, which lib.rs does not declare");
+        assert!(
+            declared.contains(&m.as_str()),
+            "the layer table names `{m}`, which lib.rs does not declare"
+        );
     }
     // The README's layout table names the library's folders and files in the same order.
     let readme = fs::read_to_string(crate_dir().join("../../README.md")).unwrap();
     let mut listed: Vec<String> = Vec::new();
-    for row in readme.lines().filter(|l| l.starts_with("| `crates/underfoot/src/")) {
+    for row in readme
+        .lines()
+        .filter(|l| l.starts_with("| `crates/underfoot/src/"))
+    {
         let cell = row.split(" | ").next().unwrap();
         for path in cell.split('`').skip(1).step_by(2) {
             let name: String = path
@@ -228,10 +255,23 @@ fn every_module_of_lib_rs_is_in_the_table_and_the_readme_agrees() {
             }
         }
     }
-    let expected: Vec<String> = order.iter().filter(|m| listed.contains(m)).cloned().collect();
-    assert_eq!(listed, expected, "the README's layout table is not in lib.rs's layer order");
-    let missing: Vec<&String> = order.iter().filter(|m| !listed.contains(m) && m.as_str() != "fuzzing").collect();
-    assert!(missing.is_empty(), "the README's layout table leaves out {missing:?}");
+    let expected: Vec<String> = order
+        .iter()
+        .filter(|m| listed.contains(m))
+        .cloned()
+        .collect();
+    assert_eq!(
+        listed, expected,
+        "the README's layout table is not in lib.rs's layer order"
+    );
+    let missing: Vec<&String> = order
+        .iter()
+        .filter(|m| !listed.contains(m) && m.as_str() != "fuzzing")
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "the README's layout table leaves out {missing:?}"
+    );
 }
 
 #[test]

@@ -2,10 +2,10 @@
 //! fitting pipeline: each material's stretch has that material's measured response.
 
 use underfoot::engine::offline::{render, walk_across};
-use underfoot::material::evaluate::segment_lsd;
 use underfoot::engine::{EngineConfig, MaterialBank};
 use underfoot::force::gait::{GaitConfig, nominal_step};
 use underfoot::material::builtin::builtin;
+use underfoot::material::evaluate::segment_lsd;
 use underfoot::synthesis::VoiceConfig;
 use underfoot::units::{Newtons, SampleRate};
 

@@ -15,7 +15,13 @@ impl Model {
     }
 
     /// The minimiser of `q(a + t d)` for `t` in `[t0, t1]`, and its value.
-    pub(super) fn line_min(&self, a: &DVector<f64>, d: &DVector<f64>, t0: f64, t1: f64) -> (f64, f64) {
+    pub(super) fn line_min(
+        &self,
+        a: &DVector<f64>,
+        d: &DVector<f64>,
+        t0: f64,
+        t1: f64,
+    ) -> (f64, f64) {
         let bd = &self.b * d;
         let curv = d.dot(&bd);
         let slope = self.gh.dot(d) + a.dot(&bd);
@@ -31,7 +37,6 @@ impl Model {
     }
 }
 
-
 /// `p(α)` for the SVD data: `−V (s/(s² + α)) uf`.
 fn tr_step(v: &DMatrix<f64>, s: &DVector<f64>, uf: &DVector<f64>, alpha: f64) -> DVector<f64> {
     let mut c = DVector::zeros(s.len());
@@ -43,7 +48,11 @@ fn tr_step(v: &DMatrix<f64>, s: &DVector<f64>, uf: &DVector<f64>, alpha: f64) ->
 }
 
 /// The exact minimiser of `½‖A p + f‖²` over `‖p‖ <= Δ`, and whether the constraint is active.
-pub(super) fn solve_trust_region(a: &DMatrix<f64>, f: &DVector<f64>, delta: f64) -> Option<DVector<f64>> {
+pub(super) fn solve_trust_region(
+    a: &DMatrix<f64>,
+    f: &DVector<f64>,
+    delta: f64,
+) -> Option<DVector<f64>> {
     let svd = crate::numeric::svd(a.clone()).ok()?;
     let u = svd.u?;
     let vt = svd.v_t?;

@@ -76,8 +76,7 @@ fn optimum_on_a_bound_satisfies_kkt() {
     let p = rosenbrock();
     let lo = [-2.0, -1.0];
     let hi = [2.0, 0.5];
-    let sol =
-        least_squares_bounded(&p, &[-1.2, 0.0], &lo, &hi, &TrfOptions::default()).unwrap();
+    let sol = least_squares_bounded(&p, &[-1.2, 0.0], &lo, &hi, &TrfOptions::default()).unwrap();
     eprintln!(
         "bounded rosenbrock: x = {:?}, g = {:?}, {} iterations, {:?}",
         sol.x, sol.gradient, sol.iterations, sol.status
