@@ -12,7 +12,7 @@
 //!    micro-impacts spread over the loading: below a median of `solid_half_energy`
 //!    (30 ms) from 5% to 50% of a strike's energy, the ground is a solid.
 //! 3. **Impact onsets and the event rate** ([`onsets`], [`crumpling`]). The Daubechies
-//!    detail band nearest 6-12 kHz isolates impact onsets; they are counted in each strike
+//!    detail band whose top is nearest 12 kHz isolates impact onsets; they are counted in each strike
 //!    window (`K` per strike), and the scale `a` of the event rate `N(t) = e^{a I(t)} - 1`
 //!    of the crumpling measure `I(t)` is fitted so that the expected number of events
 //!    equals the count (recorded as `rate_scale`).
