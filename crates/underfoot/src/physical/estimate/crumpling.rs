@@ -216,10 +216,9 @@ pub fn impact_onsets(
         }
         *e = acc.max(0.0) / width as f64;
     }
-    let mut sorted = energy.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted[sorted.len() / 2];
-    let loudest = sorted.last().copied().unwrap_or(0.0);
+    // The upper median (the nearest rank), as the noise floor.
+    let median = crate::numeric::percentile(&energy, 0.5).unwrap_or(0.0);
+    let loudest = energy.iter().copied().fold(0.0, f64::max);
     // Energies are squares, hence a tenth of the decibels.
     let threshold =
         (cfg.noise_factor * median).max(loudest * 10f64.powf(-cfg.dynamic_range.0 / 10.0));

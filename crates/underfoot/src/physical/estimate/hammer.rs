@@ -9,9 +9,8 @@
 //! strongly hammer and surface couple ([`super::gains`]). The gain fit needs the spectrum
 //! of the hammer's force pulse on a rigid surface, `F(f)`, simulated here.
 
-use num_complex::Complex64;
-
 use super::EstimateError;
+use crate::numeric::dtft;
 use crate::physical::{Impact, ImpactParams, Surface};
 use crate::units::{Hz, SampleRate, Seconds};
 
@@ -59,18 +58,11 @@ pub(super) fn contact_spectrum(
     let mut force = vec![0.0f32; rate.samples_in(Seconds(0.02)).max(64)];
     impact.process(&mut force);
     let t = 1.0 / rate.hz();
+    // The pulse lasts a fraction of a millisecond: only its samples count.
+    let end = force.iter().rposition(|x| *x != 0.0).map_or(0, |n| n + 1);
+    let impulses: Vec<f64> = force[..end].iter().map(|x| f64::from(*x) * t).collect();
     Ok(freqs
         .iter()
-        .map(|f| {
-            let w = rate.omega(*f);
-            // The pulse lasts a fraction of a millisecond: only its samples count.
-            force
-                .iter()
-                .enumerate()
-                .filter(|(_, x)| **x != 0.0)
-                .map(|(n, x)| Complex64::from_polar(f64::from(*x) * t, -w * n as f64))
-                .sum::<Complex64>()
-                .norm()
-        })
+        .map(|f| dtft(&impulses, rate.omega(*f)).norm())
         .collect())
 }
