@@ -26,7 +26,7 @@ pub(super) fn events_per_newton(
 }
 
 /// The force a nominal step loads on: the sum of its rises, in newtons.
-pub(super) fn loading_rise(cfg: &EstimateConfig) -> f64 {
+fn loading_rise(cfg: &EstimateConfig) -> f64 {
     let step = nominal_step(cfg.nominal_weight_kg, cfg.nominal_cadence, RENDER_RATE.hz());
     step.windows(2).map(|w| (w[1] - w[0]).max(0.0)).sum()
 }
