@@ -7,7 +7,7 @@
 //! `I(t)` with the scale `a` of `N(t) = e^{a I(t)} - 1` is fitted so that the expected
 //! number of events equals the count (recorded as `rate_scale`).
 //!
-//! **Solid or aggregate** ([`KindChoice::Auto`](super::KindChoice::Auto)). A solid answers
+//! **Solid or aggregate** ([`KindChoice::Auto`]). A solid answers
 //! a step with one impact, whose energy arrives at once; an aggregate with a stream of
 //! micro-impacts spread over the loading. The rule: the median time a strike takes to go
 //! from 5% to 50% of its energy (at the recording's own rate; counting from the first 5%
