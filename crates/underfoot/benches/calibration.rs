@@ -4,7 +4,7 @@
 //! On the shared recordings of each material (gravel first; skipped with a note when
 //! the recordings are absent):
 //!
-//! - `calibration/physical/NAME`: [`calibrate_measured`] alone, from the measured
+//! - `calibration/physical/NAME`: [`estimate_measured`] alone, from the measured
 //!   response the IIR fit has already computed (what `build_material` does);
 //! - `calibration/iir/NAME`: `build_material` without the physical model (reading,
 //!   conditioning and measuring the recordings, and the order search);
@@ -20,8 +20,8 @@ use std::path::PathBuf;
 use criterion::{Criterion, criterion_group, criterion_main};
 use underfoot::analysis::measure;
 use underfoot::material::build::{BuildConfig, build_material};
-use underfoot::physical::CalibrationConfig;
-use underfoot::physical::calibrate::calibrate_measured;
+use underfoot::physical::EstimateConfig;
+use underfoot::physical::estimate::estimate_measured;
 use underfoot::recording::{Recording, read};
 
 fn shared(material: &str) -> Option<Vec<Recording>> {
@@ -52,11 +52,11 @@ fn bench(c: &mut Criterion) {
         physical: None,
         ..BuildConfig::default()
     };
-    let cal = CalibrationConfig::default();
+    let cal = EstimateConfig::default();
     let mut group = c.benchmark_group("calibration");
     for (name, recs) in &materials {
         let measured = measure(recs, &cal.analysis).expect("measurable");
-        let model = calibrate_measured(recs, &measured, &cal).expect("calibrates");
+        let model = estimate_measured(recs, &measured, &cal).expect("estimates");
         eprintln!(
             "{name}: physical {}, {} modes, LSD {:.3} dB",
             model.kind.name(),
@@ -64,7 +64,7 @@ fn bench(c: &mut Criterion) {
             model.record.lsd_db
         );
         group.bench_function(format!("physical/{name}"), |b| {
-            b.iter(|| calibrate_measured(black_box(recs), &measured, &cal).expect("calibrates"));
+            b.iter(|| estimate_measured(black_box(recs), &measured, &cal).expect("estimates"));
         });
         group.bench_function(format!("iir/{name}"), |b| {
             b.iter(|| build_material(name, black_box(recs), &iir, &mut |_| {}).expect("fit"));

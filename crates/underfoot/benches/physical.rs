@@ -6,25 +6,25 @@
 //!   number of surfaces one core runs in real time.
 //! - `impact/rigid`: the same hammer on a rigid surface, the cost of the contact alone.
 //! - `aggregate/3 modes`, `aggregate/16 modes`: the crumpling model with its default
-//!   grain (four voices) on the same surfaces, at a constant 300 events/s, at 48 kHz in
+//!   grain (four impacts in flight) on the same surfaces, at a constant 300 events/s, at 48 kHz in
 //!   128-frame blocks; throughput in samples per second.
 
 use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use underfoot::physical::{
-    Aggregate, AggregateParams, Impact, ImpactParams, Mode, ResonatorBank, Surface,
+    Aggregate, AggregateParams, Impact, ImpactParams, ResonatorBank, Surface, SurfaceMode,
 };
 use underfoot::units::{Hz, SampleRate, Seconds};
 
 const RATE: SampleRate = SampleRate(48_000);
 const STRIKE_EVERY: usize = 4_800;
 
-fn modes(modes: usize) -> Vec<Mode> {
+fn modes(modes: usize) -> Vec<SurfaceMode> {
     (0..modes)
         .map(|k| {
             let f = 60.0 * 1.37f64.powi(k as i32);
-            Mode {
+            SurfaceMode {
                 frequency: Hz(f),
                 decay: Seconds(8.0 / f),
                 gain: 1e-3 / (1.0 + k as f64),

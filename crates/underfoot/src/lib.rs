@@ -44,8 +44,9 @@
 //!   ([`physical`]).
 //! - **\[tile\] the tile paper**: Y. Visell et al., *A Vibrotactile Device for Display of
 //!   Virtual Ground Materials in Walking*. The drive from the falling rate of force
-//!   ([`force`]), the stochastic model of aggregates ([`physical`]), and calibration by
-//!   linear prediction and wavelet analysis ([`fit::lpc`], [`signal::wavelet`]).
+//!   ([`force`]), the stochastic model of aggregates ([`physical`]), and its parameters
+//!   estimated by linear prediction and wavelet analysis
+//!   ([`physical::estimate`](mod@physical::estimate), [`fit::lpc`], [`signal::wavelet`]).
 //! - **\[limb\] the compensation paper**: *Modeling of Lower Limbs for Vibrotactile
 //!   Compensation*. The device's response from frequency sweeps, the filter-bank
 //!   equalizer, the rheological limb model fitted per user and the table of users

@@ -3,8 +3,8 @@
 //! Everything that happens on the audio thread is exercised: all three drives, force
 //! readings, steps, material switches mid-walk (crossfades), a material replaced in the
 //! bank, non-finite input, the limiter working, the watchdog fading out (after the
-//! compensation, in the output stage) and the shut-down fade. The physical aggregate model too: Poisson events, retuned voices,
-//! stolen voices, explicit strikes and resets.
+//! compensation, in the output stage) and the shut-down fade. The physical aggregate model too: Poisson events, retuned slots,
+//! stolen slots, explicit strikes and resets.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -16,7 +16,7 @@ use underfoot::engine::{self, EngineConfig, Event, MaterialBank, TimedEvent};
 use underfoot::force::SensorReading;
 use underfoot::force::gait::nominal_step;
 use underfoot::material::builtin::builtin;
-use underfoot::physical::{Aggregate, AggregateParams, Mode};
+use underfoot::physical::{Aggregate, AggregateParams, SurfaceMode};
 use underfoot::signal::butterworth;
 use underfoot::synthesis::{PreparedMaterial, SynthModel, VoiceConfig};
 use underfoot::units::{Decibels, Hz, Newtons, SampleRate, Seconds};
@@ -183,13 +183,13 @@ fn rendering_never_allocates_or_frees() {
 #[test]
 fn the_aggregate_model_never_allocates_or_frees() {
     let rate = SampleRate(48_000);
-    let modes: Vec<Mode> = [
+    let modes: Vec<SurfaceMode> = [
         (180.0, 0.08, 2e-3),
         (640.0, 0.04, 1e-3),
         (2100.0, 0.02, 5e-4),
     ]
     .iter()
-    .map(|&(f, tau, gain)| Mode {
+    .map(|&(f, tau, gain)| SurfaceMode {
         frequency: Hz(f),
         decay: Seconds(tau),
         gain,
@@ -203,8 +203,8 @@ fn the_aggregate_model_never_allocates_or_frees() {
     let mut rates = vec![0.0f32; 480];
     let mut out = vec![0.0f32; 480];
     for block in 0..600usize {
-        // A footstep-like rise and fall of the rate, floods (voice stealing and the
-        // per-sample cap), silences (voices coming to rest) and invalid rates.
+        // A footstep-like rise and fall of the rate, floods (slot stealing and the
+        // per-sample cap), silences (slots coming to rest) and invalid rates.
         for (n, r) in rates.iter_mut().enumerate() {
             let t = (block * 480 + n) as f32 / 48_000.0;
             *r = match block % 100 {

@@ -1,8 +1,8 @@
 //! `underfoot compare`: the IIR paper's Table I for any set of materials and recordings.
 //!
 //! Each `NAME=FOLDER` is fitted from the recordings in the folder exactly as `underfoot
-//! fit` fits them: the IIR filter and the physical model, calibrated with no hand tuning
-//! ([`underfoot::physical::calibrate()`]). Every figure is one of
+//! fit` fits them: the IIR filter and the physical model, estimated with no hand tuning
+//! ([`underfoot::physical::estimate()`]). Every figure is one of
 //! [`underfoot::fit::metrics`]'s, against the measured response on the fit's grid of 96
 //! log-spaced frequencies of the band:
 //!
@@ -11,8 +11,8 @@
 //!   output gain and analysed exactly as the recordings were (the `fit` record, the figure
 //!   `fit` prints);
 //! - **physical, held out**: the same render with another random stream of
-//!   micro-impacts ([`underfoot::physical::calibrate::held_out_seed`]), which the
-//!   calibration has not seen; for an aggregate it is a little worse, and it is the fairer
+//!   micro-impacts ([`underfoot::physical::estimate::held_out_seed`]), which the
+//!   estimation has not seen; for an aggregate it is a little worse, and it is the fairer
 //!   figure for how the model sounds in use. A solid's render has no randomness, so both
 //!   figures agree.
 //!
@@ -37,7 +37,7 @@ use serde::Serialize;
 use underfoot::atomic_file::OutputFile;
 use underfoot::material::build::{BuildConfig, build_material};
 use underfoot::material::library::validate_name;
-use underfoot::physical::calibrate::{held_out_seed, score_render};
+use underfoot::physical::estimate::{held_out_seed, score_render};
 use underfoot::recording;
 use underfoot::units::Hz;
 

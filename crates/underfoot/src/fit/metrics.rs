@@ -29,11 +29,11 @@
 //!    = \sqrt{\mathrm{LSD}^2 - \bar d^2} . $$
 //!
 //! (the mean minimises the RMS, so no other gain does better). A model whose level was
-//! set this way (the physical model's output gain, see [`crate::physical::calibrate()`])
+//! set this way (the physical model's output gain, see [`crate::physical::estimate()`])
 //! has `\bar d = 0` and both distances agree.
 //!
 //! These functions are the only definitions of the metrics: `fit`, `compare`, the
-//! physical calibration, the reports and the tests all call them, on the grid
+//! physical estimation, the reports and the tests all call them, on the grid
 //! [`METRIC_POINTS`] log-spaced points of the band (`Band::log_grid`) unless said
 //! otherwise, so the same two curves give the same figure wherever it is printed.
 

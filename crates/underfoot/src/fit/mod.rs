@@ -50,7 +50,6 @@
 //! (nalgebra's SVD iterates forever on one) and caps the iterations; the eigenvalue
 //! solvers ([`numeric::roots`](crate::numeric::roots()), [`vector_fit`]) cap theirs; the
 //! refinements cap their steps.
-pub mod crumpling;
 pub mod levi;
 pub mod lpc;
 pub mod metrics;

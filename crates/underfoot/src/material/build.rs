@@ -14,8 +14,8 @@ use crate::fit::{FitConfig, FitError, MetricGrid, Metrics, Target, fit};
 use crate::material::library::validate_name;
 use crate::material::quality::{self, QualityConfig, QualityError, RecordingsQuality};
 use crate::material::{FilterCoefficients, FitRecord, MaterialModel, SourceFile};
-use crate::physical::calibrate::calibrate_measured;
-use crate::physical::{CalibrationConfig, GroundKind};
+use crate::physical::estimate::estimate_measured;
+use crate::physical::{EstimateConfig, GroundKind};
 use crate::recording::Recording;
 
 pub use crate::fit::metrics::METRIC_POINTS;
@@ -29,7 +29,7 @@ pub struct BuildConfig {
     pub fit: FitConfig,
     /// The physical model's calibration from the same recordings (its `analysis` is
     /// replaced by the one above); `None` to skip it.
-    pub physical: Option<CalibrationConfig>,
+    pub physical: Option<EstimateConfig>,
     /// What the build refuses and warns about ([`super::quality`]).
     pub quality: QualityConfig,
 }
@@ -39,7 +39,7 @@ impl Default for BuildConfig {
         Self {
             analysis: AnalysisConfig::default(),
             fit: FitConfig::default(),
-            physical: Some(CalibrationConfig::default()),
+            physical: Some(EstimateConfig::default()),
             quality: QualityConfig::default(),
         }
     }
@@ -171,14 +171,14 @@ pub fn build_material_with_report(
         crate::fit::OrderChoice::Fixed(n) => n,
     };
     // The physical calibration needs only the measurement: it runs beside the IIR fit.
-    let calibration = cfg.physical.as_ref().map(|cal| CalibrationConfig {
+    let calibration = cfg.physical.as_ref().map(|cal| EstimateConfig {
         analysis: a.clone(),
         ..cal.clone()
     });
     let (outcome, physical) = std::thread::scope(|scope| {
         let physical = calibration
             .as_ref()
-            .map(|cal| scope.spawn(|| calibrate_measured(recordings, &measured, cal)));
+            .map(|cal| scope.spawn(|| estimate_measured(recordings, &measured, cal)));
         let outcome = fit(&target, &grid, &cfg.fit, &mut |f| {
             progress(&Progress::OrderTried {
                 order: f.order,

@@ -1,6 +1,6 @@
-//! A calibrated physical model, running: force in, vibration out.
+//! An estimated physical model, running: force in, vibration out.
 //!
-//! [`Ground`] is what the engine plays for `--model physical`, and what the calibration
+//! [`Ground`] is what the engine plays for `--model physical`, and what the estimation
 //! renders, so the two hear the same thing. Its input is the loading rate
 //! `v_F = max(dF/dt, 0)` in newtons per second, sample by sample:
 //!
@@ -11,17 +11,17 @@
 //!
 //! A step announced without force (an OSC step, say: [`Ground::step`]) strikes a solid
 //! and plays a nominal step's loading through an aggregate, scaled by the intensity.
-//! Output is surface velocity times the calibrated output gain: a nominal step comes out
+//! Output is surface velocity times the estimated output gain: a nominal step comes out
 //! at the recorded level.
 //!
 //! Prepared by [`Ground::new`]; [`Ground::assign_from`] loads another prepared model into
 //! an existing one without allocating (capacity for [`MAX_MODES`] modes and
-//! [`MAX_VOICES`] voices is reserved up front), so a material can change on the audio
+//! [`MAX_IMPACTS_IN_FLIGHT`] micro-impacts is reserved up front), so a material can change on the audio
 //! thread. Nothing after preparation allocates or panics.
 
 use super::PhysicalError;
 use super::aggregate::Aggregate;
-use super::model::{GroundKind, MAX_MODES, MAX_VOICES, PhysicalModel};
+use super::model::{GroundKind, MAX_IMPACTS_IN_FLIGHT, MAX_MODES, PhysicalModel};
 use crate::force::drive::DriveKind;
 use crate::force::gait::nominal_step;
 use crate::units::{Newtons, SampleRate};
@@ -48,7 +48,7 @@ pub struct Ground {
 impl Clone for Ground {
     fn clone(&self) -> Self {
         let mut aggregate = self.aggregate.clone();
-        aggregate.reserve(MAX_MODES, MAX_VOICES);
+        aggregate.reserve(MAX_MODES, MAX_IMPACTS_IN_FLIGHT);
         Self {
             kind: self.kind,
             aggregate,
@@ -81,7 +81,7 @@ impl Ground {
             rate,
             seed,
             MAX_MODES,
-            MAX_VOICES,
+            MAX_IMPACTS_IN_FLIGHT,
         )?;
         let nominal =
             DriveKind::ForceRate.offline(&nominal_step(70.0, 1.8, rate.hz()), rate, Newtons(1.0));

@@ -6,32 +6,31 @@
 //! damped modes (the surface), and the vibration is the surface's motion at the contact
 //! point.
 //!
-//! - [`resonator`]: the surface, a [`ResonatorBank`] of modes discretised by impulse
-//!   invariance, also available as second-order sections for interchange;
-//! - [`impact`]: the Hunt-Crossley contact between a hammer and a rigid or resonating
-//!   surface, integrated by an energy-consistent implicit step;
-//! - [`aggregate`]: gravel, snow or sand as a Poisson stream of micro-impacts of random
-//!   energy and fragment size, at a rate `N(t)` the caller drives, on a pool of impacts;
-//! - [`mod@calibrate`]: all of the above identified from recordings, with no hand tuning;
-//! - [`model`]: the calibrated [`PhysicalModel`] as stored in a library file;
-//! - [`ground`]: a calibrated model running, force in and vibration out ([`Ground`]).
+//! | module | what |
+//! |---|---|
+//! | [`resonator`] | the surface, a [`ResonatorBank`] of [`SurfaceMode`]s discretised by impulse invariance, also available as second-order sections for interchange |
+//! | [`impact`] | the Hunt-Crossley contact between a hammer and a rigid or resonating surface, integrated by an energy-consistent implicit step |
+//! | [`aggregate`] | gravel, snow or sand as a Poisson stream of micro-impacts of random energy and fragment size, at a rate `N(t)` the caller drives, on a pool of impacts in flight |
+//! | [`estimate`](mod@estimate) | all of the above estimated from recordings, with no hand tuning |
+//! | [`model`] | the estimated [`PhysicalModel`] as stored in a library file |
+//! | [`ground`] | an estimated model running, force in and vibration out ([`Ground`]) |
 //!
 //! All are prepared once (where they may allocate and validate) and then run without
 //! allocating or panicking.
 
 pub mod aggregate;
-pub mod calibrate;
+pub mod estimate;
 pub mod ground;
 pub mod impact;
 pub mod model;
 pub mod resonator;
 
 pub use aggregate::{Aggregate, AggregateParams};
-pub use calibrate::{CalibrationConfig, CalibrationError, KindChoice, calibrate};
+pub use estimate::{EstimateConfig, EstimateError, KindChoice, estimate};
 pub use ground::Ground;
 pub use impact::{Impact, ImpactParams, Surface};
 pub use model::{GroundKind, PhysicalModel, PhysicalRecord};
-pub use resonator::{Mode, ResonatorBank};
+pub use resonator::{ResonatorBank, SurfaceMode};
 
 use crate::units::{Hz, SampleRate, Seconds};
 
@@ -70,7 +69,7 @@ pub enum PhysicalError {
     /// ([`resonator::LONGEST_DECAY`]).
     #[error(
         "mode {index}: decay time {decay} is longer than the {limit} any mode may ring \
-         (recalibrate the material)"
+         (refit the material)"
     )]
     DecayTooLong {
         /// Which mode.

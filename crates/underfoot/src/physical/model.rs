@@ -1,16 +1,16 @@
-//! A calibrated physical model of a ground material, as stored in a library file.
+//! An estimated physical model of a ground material, as stored in a library file.
 
 use serde::{Deserialize, Serialize};
 
 use super::resonator::LONGEST_DECAY;
-use super::{AggregateParams, ImpactParams, Mode, PhysicalError};
+use super::{AggregateParams, ImpactParams, PhysicalError, SurfaceMode};
 use crate::units::Hz;
 
 /// The most modes a stored model may have.
 pub const MAX_MODES: usize = 32;
 
 /// The most micro-impacts a stored aggregate may ring at once.
-pub const MAX_VOICES: usize = 8;
+pub const MAX_IMPACTS_IN_FLIGHT: usize = 8;
 
 /// How the ground answers a step.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -33,7 +33,7 @@ impl GroundKind {
     }
 }
 
-/// A physical model calibrated from recordings ([`mod@super::calibrate`]): the surface's
+/// A physical model estimated from recordings ([`mod@super::estimate`]): the surface's
 /// modes, the hammer that strikes it, and how force drives the strikes.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PhysicalModel {
@@ -41,22 +41,24 @@ pub struct PhysicalModel {
     pub kind: GroundKind,
     /// The surface at the point struck (frequencies in Hz, decay times in s, gains in
     /// m/(N·s)).
-    pub modes: Vec<Mode>,
+    pub modes: Vec<SurfaceMode>,
     /// The hammer; its `velocity` is the RMS speed of a strike (m/s).
     pub hammer: ImpactParams,
     /// Fragment sizes are log-uniform in `[1/(1+s), 1+s]` (aggregates).
     pub size_spread: f64,
-    /// How many micro-impacts can ring at once (aggregates).
-    pub voices: usize,
+    /// How many micro-impacts can ring at once (aggregates). Stored as `voices`, its name
+    /// in library files.
+    #[serde(rename = "voices")]
+    pub impacts_in_flight: usize,
     /// The control mapping `N(t) = α v_F(t)`: events per newton of loading (aggregates).
     pub events_per_newton: f64,
     /// Output units per m/s of surface velocity: the recorded level.
     pub output_gain: f64,
-    /// How the calibration went.
+    /// How the estimation went.
     pub record: PhysicalRecord,
 }
 
-/// What the calibration measured and how well the model matches.
+/// What the estimation measured and how well the model matches.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PhysicalRecord {
     /// Impact onsets per strike, counted in the wavelet detail band.
@@ -84,7 +86,7 @@ impl PhysicalModel {
         AggregateParams {
             impact: self.hammer,
             size_spread: self.size_spread,
-            voices: self.voices,
+            impacts_in_flight: self.impacts_in_flight,
         }
     }
 
@@ -143,8 +145,9 @@ impl PhysicalModel {
         if !(self.size_spread.is_finite() && (0.0..=1.0).contains(&self.size_spread)) {
             return Err(invalid("size_spread", self.size_spread, "in [0, 1]"));
         }
-        if self.voices == 0 || self.voices > MAX_VOICES {
-            return Err(invalid("voices", self.voices as f64, "1 to 8"));
+        if self.impacts_in_flight == 0 || self.impacts_in_flight > MAX_IMPACTS_IN_FLIGHT {
+            // Named as in the file.
+            return Err(invalid("voices", self.impacts_in_flight as f64, "1 to 8"));
         }
         if !(self.events_per_newton.is_finite() && self.events_per_newton >= 0.0) {
             return Err(invalid(

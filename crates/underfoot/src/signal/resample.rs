@@ -168,7 +168,7 @@ impl Resampler {
     ///
     /// A design at an awkward ratio (44.1 kHz to 2 kHz: 441 phases of a windowed sinc)
     /// costs more than resampling a footstep, and one `fit` conditions each recording
-    /// several times (the quality gate, the measurement, the physical calibration and its
+    /// several times (the quality gate, the measurement, the physical estimation and its
     /// rendered steps). The cache holds the few ratios a process meets, at most
     /// [`SHARED_DESIGNS`]; past that the oldest is dropped.
     ///

@@ -113,10 +113,10 @@ fn builtin_library_is_current() {
                 preset.name
             );
         }
-        // The physical model is calibrated by the same fit, deterministically.
+        // The physical model is estimated by the same fit, deterministically.
         let (got, want) = (refit.physical.as_ref(), preset.physical.as_ref());
         let (got, want) = (
-            got.expect("the refit calibrates a physical model"),
+            got.expect("the refit estimates a physical model"),
             want.unwrap_or_else(|| panic!("{}: run scripts/refit-builtin", preset.name)),
         );
         assert_eq!(

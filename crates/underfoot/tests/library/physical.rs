@@ -1,5 +1,5 @@
-//! The physical model's calibration: oracles on signals the tests make, and
-//! calibrate-then-synthesise on every real material.
+//! Estimating the physical model: oracles on signals the tests make, and
+//! estimate-then-synthesise on every real material.
 //!
 //! The real-data test needs `../shared/data/footsteps` (skipped with a note when absent,
 //! unless `UNDERFOOT_REQUIRE_DATA=1`).
@@ -8,9 +8,9 @@ use crate::common;
 
 use underfoot::material::builtin::builtin;
 use underfoot::material::library::Library;
-use underfoot::physical::calibrate::{fit_rate_mapping, hammer_for, held_out_seed, score_render};
+use underfoot::physical::estimate::{fit_rate_mapping, hammer_for, held_out_seed, score_render};
 use underfoot::physical::{
-    CalibrationConfig, Ground, GroundKind, Impact, KindChoice, Surface, calibrate,
+    EstimateConfig, Ground, GroundKind, Impact, KindChoice, Surface, estimate,
 };
 use underfoot::recording::{self, Recording};
 use underfoot::signal::noise::SplitMix64;
@@ -21,19 +21,19 @@ fn calibrate_then_synthesise_every_real_material_within_3_db() {
     let Some(root) = common::footsteps_dir() else {
         return;
     };
-    let cfg = CalibrationConfig::default();
+    let cfg = EstimateConfig::default();
     let mut worst: f64 = 0.0;
     for (name, files) in common::footsteps_by_material(&root) {
         let recordings: Vec<Recording> = files
             .iter()
             .map(|f| recording::read(f, None).expect("readable recording"))
             .collect();
-        let model = calibrate(&recordings, &cfg).expect("calibrates");
+        let model = estimate(&recordings, &cfg).expect("estimates");
         let grid = cfg.analysis.band.log_grid(96);
         let measured = underfoot::analysis::measure(&recordings, &cfg.analysis)
             .expect("measurable")
             .on_grid(&grid);
-        // The recorded figure is the calibration render's, at the stored gain: scoring
+        // The recorded figure is the estimation render's, at the stored gain: scoring
         // that render again gives it back.
         let (_, again) =
             score_render(&model, &cfg, &grid, &measured, cfg.seed).expect("render analyses");
@@ -43,12 +43,12 @@ fn calibrate_then_synthesise_every_real_material_within_3_db() {
             model.record.lsd_db,
             again.lsd_db
         );
-        // Score a render the calibration has not seen (another seed).
+        // Score a render the estimation has not seen (another seed).
         let (_, held_out) = score_render(&model, &cfg, &grid, &measured, held_out_seed(&cfg))
             .expect("render analyses");
         let lsd = held_out.lsd_db;
         eprintln!(
-            "{name}: {} with {} modes, LSD {lsd:.2} dB held out (calibration {:.2} dB)",
+            "{name}: {} with {} modes, LSD {lsd:.2} dB held out (estimation {:.2} dB)",
             model.kind.name(),
             model.modes.len(),
             model.record.lsd_db
@@ -92,10 +92,10 @@ fn struck_floor(modes: &[(f64, f64, f64)], strikes: usize, seed: u64) -> Recordi
 fn a_struck_floor_is_a_solid_with_its_modes_and_its_spectrum() {
     let truth = [(62.0, 0.06, 1.0), (145.0, 0.04, 0.6), (410.0, 0.025, 0.4)];
     let recordings: Vec<Recording> = (0..3).map(|s| struck_floor(&truth, 2, s)).collect();
-    let cfg = CalibrationConfig::default();
-    let model = calibrate(&recordings, &cfg).expect("calibrates");
+    let cfg = EstimateConfig::default();
+    let model = estimate(&recordings, &cfg).expect("estimates");
     assert_eq!(model.kind, GroundKind::Solid, "{:?}", model.record);
-    // The calibrated surface rings where the floor does: its response (velocity per unit
+    // The estimated surface rings where the floor does: its response (velocity per unit
     // impulse, modes summed with their signs) peaks at each true mode.
     let response = |f: f64| {
         let s = num_complex::Complex64::new(0.0, std::f64::consts::TAU * f);
@@ -130,30 +130,30 @@ fn a_struck_floor_is_a_solid_with_its_modes_and_its_spectrum() {
 #[test]
 fn the_kind_can_be_fixed_and_bad_settings_are_refused() {
     let recordings = [struck_floor(&[(100.0, 0.05, 1.0)], 2, 9)];
-    let cfg = CalibrationConfig {
+    let cfg = EstimateConfig {
         kind: KindChoice::Fixed(GroundKind::Aggregate),
-        ..CalibrationConfig::default()
+        ..EstimateConfig::default()
     };
-    let model = calibrate(&recordings, &cfg).expect("calibrates");
+    let model = estimate(&recordings, &cfg).expect("estimates");
     assert_eq!(model.kind, GroundKind::Aggregate);
     assert!(model.events_per_newton > 0.0);
     for bad in [
-        CalibrationConfig {
+        EstimateConfig {
             lpc_orders: vec![],
-            ..CalibrationConfig::default()
+            ..EstimateConfig::default()
         },
-        CalibrationConfig {
+        EstimateConfig {
             restitution: 1.5,
-            ..CalibrationConfig::default()
+            ..EstimateConfig::default()
         },
-        CalibrationConfig {
+        EstimateConfig {
             contact_time: Seconds(f64::NAN),
-            ..CalibrationConfig::default()
+            ..EstimateConfig::default()
         },
     ] {
-        assert!(calibrate(&recordings, &bad).is_err());
+        assert!(estimate(&recordings, &bad).is_err());
     }
-    assert!(calibrate(&[], &CalibrationConfig::default()).is_err());
+    assert!(estimate(&[], &EstimateConfig::default()).is_err());
 }
 
 #[test]
@@ -209,7 +209,11 @@ fn a_broken_physical_model_in_a_library_file_is_refused() {
     let err = Library::from_json(&lib.to_json(), "test.json").expect_err("refused");
     assert!(err.to_string().contains("physical"), "{err}");
     let mut lib = builtin().clone();
-    lib.materials[0].physical.as_mut().expect("physical").voices = 0;
+    lib.materials[0]
+        .physical
+        .as_mut()
+        .expect("physical")
+        .impacts_in_flight = 0;
     assert!(Library::from_json(&lib.to_json(), "test.json").is_err());
 }
 

@@ -34,7 +34,7 @@ fn every_real_material_fits_within_one_db() {
         "expected the shared footstep materials, found {}",
         materials.len()
     );
-    // The physical calibration has its own tests; this one is about the filter.
+    // The physical estimation has its own tests; this one is about the filter.
     let cfg = BuildConfig {
         physical: None,
         ..BuildConfig::default()

@@ -206,7 +206,7 @@ fn one_osc_step_is_silent_within_100_ms_after_its_window() {
 #[test]
 fn a_physical_mode_of_a_million_seconds_is_refused_on_load_and_capped_at_play() {
     use underfoot::material::Library;
-    use underfoot::physical::resonator::{LONGEST_DECAY, Mode, ResonatorBank};
+    use underfoot::physical::resonator::{LONGEST_DECAY, ResonatorBank, SurfaceMode};
     let mut lib = builtin().clone();
     lib.materials
         .retain(|m| m.name == "metal" && m.physical.is_some());
@@ -218,7 +218,7 @@ fn a_physical_mode_of_a_million_seconds_is_refused_on_load_and_capped_at_play() 
     }
 
     // Built in code: the bank plays the mode with the capped decay.
-    let mode = Mode {
+    let mode = SurfaceMode {
         frequency: underfoot::units::Hz(200.0),
         decay: Seconds(1e6),
         gain: 1e-3,

@@ -16,7 +16,7 @@
 //! **Event rate.** After Cook's ansatz, the rate of impacts per second is
 //! `N(t) = e^{α I(t)} - 1` ([`event_rate`]).
 //!
-//! **Choosing α** ([`calibrate_rate_scale`]). The paper leaves `α` free. Here it is fixed by
+//! **Choosing α** ([`estimate_rate_scale`]). The paper leaves `α` free. Here it is fixed by
 //! counting: the onsets of the same detail band are counted ([`impact_onsets`]), and `α`
 //! is the unique value for which the expected number of events equals that count,
 //!
@@ -60,7 +60,7 @@ pub enum CrumplingError {
 
 /// Parameters of the onset count (see the module documentation).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct OnsetConfig {
+pub struct ImpactOnsetConfig {
     /// An onset's smoothed energy must exceed this many times the median.
     pub noise_factor: f64,
     /// ... and be within this much of the loudest onset.
@@ -71,7 +71,7 @@ pub struct OnsetConfig {
     pub separation: Seconds,
 }
 
-impl Default for OnsetConfig {
+impl Default for ImpactOnsetConfig {
     fn default() -> Self {
         Self {
             noise_factor: 10.0,
@@ -191,7 +191,7 @@ pub fn impact_onsets(
     rate: SampleRate,
     level: usize,
     wavelet: Wavelet,
-    cfg: &OnsetConfig,
+    cfg: &ImpactOnsetConfig,
 ) -> Result<Vec<Seconds>, CrumplingError> {
     let valid = |v: f64| v.is_finite() && v >= 0.0;
     if !(valid(cfg.noise_factor)
@@ -216,10 +216,9 @@ pub fn impact_onsets(
         }
         *e = acc.max(0.0) / width as f64;
     }
-    let mut sorted = energy.clone();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted[sorted.len() / 2];
-    let loudest = sorted.last().copied().unwrap_or(0.0);
+    // The upper median (the nearest rank), as the noise floor.
+    let median = crate::numeric::percentile(&energy, 0.5).unwrap_or(0.0);
+    let loudest = energy.iter().copied().fold(0.0, f64::max);
     // Energies are squares, hence a tenth of the decibels.
     let threshold =
         (cfg.noise_factor * median).max(loudest * 10f64.powf(-cfg.dynamic_range.0 / 10.0));
@@ -253,7 +252,7 @@ pub fn impact_onsets(
 /// [`CrumplingError::InvalidParameter`] for an empty measure or one with a negative or
 /// non-finite value; [`CrumplingError::NoActivity`] when the measure is zero everywhere
 /// but `onsets > 0`.
-pub fn calibrate_rate_scale(
+pub fn estimate_rate_scale(
     measure: &[f64],
     rate: SampleRate,
     onsets: usize,
@@ -383,8 +382,9 @@ mod tests {
             };
             let silent = quiet(0.0, 0.4).max(quiet(3.6, 4.0));
 
-            let onsets = impact_onsets(&x, RATE, 2, Wavelet::Db4, &OnsetConfig::default()).unwrap();
-            let a = calibrate_rate_scale(&measure, RATE, onsets.len()).unwrap();
+            let onsets =
+                impact_onsets(&x, RATE, 2, Wavelet::Db4, &ImpactOnsetConfig::default()).unwrap();
+            let a = estimate_rate_scale(&measure, RATE, onsets.len()).unwrap();
             let total: f64 = event_rate(&measure, a).iter().sum::<f64>() / fs;
             let count_err = (total - truth as f64).abs() / truth as f64;
             eprintln!(
@@ -402,10 +402,10 @@ mod tests {
     fn event_rate_is_zero_at_zero_measure_and_calibration_inverts_it() {
         assert_eq!(event_rate(&[0.0, 0.0], 3.0), vec![0.0, 0.0]);
         let measure: Vec<f64> = (0..1000).map(|i| (i % 100) as f64 / 100.0).collect();
-        let a = calibrate_rate_scale(&measure, SampleRate(1000), 5).unwrap();
+        let a = estimate_rate_scale(&measure, SampleRate(1000), 5).unwrap();
         let total: f64 = event_rate(&measure, a).iter().sum::<f64>() / 1000.0;
         assert!((total - 5.0).abs() < 1e-9, "{total}");
-        assert_eq!(calibrate_rate_scale(&measure, SampleRate(1000), 0), Ok(0.0));
+        assert_eq!(estimate_rate_scale(&measure, SampleRate(1000), 0), Ok(0.0));
     }
 
     #[test]
@@ -420,13 +420,13 @@ mod tests {
         let silent = crumpling_measure(&[0.0; 64], RATE, 2, w, s).unwrap();
         assert!(silent.iter().all(|&v| v == 0.0));
         assert_eq!(
-            impact_onsets(&[0.0; 64], RATE, 2, w, &OnsetConfig::default()),
+            impact_onsets(&[0.0; 64], RATE, 2, w, &ImpactOnsetConfig::default()),
             Ok(Vec::new())
         );
-        assert!(calibrate_rate_scale(&[], RATE, 3).is_err());
-        assert!(calibrate_rate_scale(&[f64::NAN], RATE, 3).is_err());
+        assert!(estimate_rate_scale(&[], RATE, 3).is_err());
+        assert!(estimate_rate_scale(&[f64::NAN], RATE, 3).is_err());
         assert_eq!(
-            calibrate_rate_scale(&silent, RATE, 3),
+            estimate_rate_scale(&silent, RATE, 3),
             Err(CrumplingError::NoActivity { onsets: 3 })
         );
     }

@@ -1,0 +1,202 @@
+//! Rendering a model as the recordings were made, to set its level and score it (step 8).
+//!
+//! `steps` (8) nominal steps are rendered at 48 kHz ([`RENDER_RATE`]): a solid strikes
+//! once at the step detector's threshold crossing; an aggregate's events follow
+//! `N(t) = α v_F(t)`, so the time structure of the micro-impacts, their random energies
+//! and sizes, the coupling and the analysis window all count. The render is analysed
+//! exactly as the recordings were ([`crate::analysis::measure`]).
+//!
+//! The steps are independent draws, so the render runs in two halves on two threads (the
+//! second half with its own random stream) and their strikes are pooled.
+
+use super::{EstimateConfig, EstimateError};
+use crate::analysis::{MeasuredResponse, StrikeSource, measure};
+use crate::fit::metrics::{Metrics, lsd_db, nrmse};
+use crate::force::drive::DriveKind;
+use crate::force::gait::nominal_step;
+use crate::physical::ground::Ground;
+use crate::physical::model::PhysicalModel;
+use crate::recording::Recording;
+use crate::signal::spectrum::fractional_octave_smooth;
+use crate::units::{Hz, Newtons, SampleRate, Seconds};
+
+/// The rate models are rendered at to set their level and to score them.
+pub const RENDER_RATE: SampleRate = SampleRate(48_000);
+
+/// The seed of the held-out render (`compare`'s second figure, the tests'): a random
+/// stream of micro-impacts the estimation has not seen.
+#[must_use]
+pub fn held_out_seed(cfg: &EstimateConfig) -> u64 {
+    cfg.seed ^ 0x00C0_FFEE
+}
+
+/// How close `model` comes to the measured magnitude `measured` on `grid`: `cfg.steps`
+/// nominal steps rendered with `seed` at the model's stored output gain, analysed as the
+/// recordings were ([`analyse_render`]), and scored by [`crate::fit::metrics`]. Returns
+/// the model's magnitude on `grid` and its metrics.
+///
+/// With `cfg.seed` this reproduces the figure the estimation records
+/// ([`PhysicalRecord::lsd_db`](crate::physical::PhysicalRecord::lsd_db), what `fit` prints: the render the level and the gains
+/// were fitted on); with [`held_out_seed`] it is the held-out figure, a render of other
+/// random micro-impacts (for a solid the two are the same render).
+///
+/// # Errors
+/// As [`analyse_render`].
+pub fn score_render(
+    model: &PhysicalModel,
+    cfg: &EstimateConfig,
+    grid: &[Hz],
+    measured: &[f64],
+    seed: u64,
+) -> Result<(Vec<f64>, Metrics), EstimateError> {
+    let got = analyse_render(model, cfg, grid, seed)?;
+    let metrics = Metrics {
+        nrmse: nrmse(measured, &got),
+        lsd_db: lsd_db(measured, &got),
+    };
+    Ok((got, metrics))
+}
+
+/// The model's magnitude on `freqs` when `steps` nominal steps are rendered at
+/// [`RENDER_RATE`] and analysed as recordings are, at the model's output gain.
+///
+/// # Errors
+/// The model is invalid, or the render holds no strike the analysis can find.
+pub fn analyse_render(
+    model: &PhysicalModel,
+    cfg: &EstimateConfig,
+    freqs: &[Hz],
+    seed: u64,
+) -> Result<Vec<f64>, EstimateError> {
+    Ok(render_measure(model, cfg, seed)?.on_grid(freqs))
+}
+
+pub(super) fn render_measure(
+    model: &PhysicalModel,
+    cfg: &EstimateConfig,
+    seed: u64,
+) -> Result<MeasuredResponse, EstimateError> {
+    // The steps are independent draws (a second apart, each with its own micro-impacts),
+    // so they are rendered and analysed in two halves on two threads, the second with its
+    // own random stream, and the halves' strikes pooled as `measure` pools a material's.
+    let steps = cfg.steps.max(1);
+    let first = steps.div_ceil(2);
+    let second = steps - first;
+    let half = |n: usize, seed: u64| -> Result<MeasuredResponse, EstimateError> {
+        let samples = render_n_steps(model, cfg, seed, n)?;
+        let recording = Recording {
+            name: "physical model (rendered)".into(),
+            rate: RENDER_RATE,
+            samples: samples.iter().map(|v| f64::from(*v)).collect(),
+            sha256: String::new(),
+        };
+        Ok(measure(&[recording], &cfg.analysis)?)
+    };
+    if second == 0 {
+        return half(first, seed);
+    }
+    let (a, b) = std::thread::scope(|scope| {
+        let other = scope.spawn(|| half(second, second_half_seed(seed)));
+        let a = half(first, seed);
+        let b = other.join().unwrap_or(Err(EstimateError::Gains(
+            "the render's second half did not finish",
+        )));
+        (a, b)
+    });
+    Ok(pool(a?, b?, cfg.analysis.smoothing_fraction))
+}
+
+/// The random stream of the second half of a render.
+fn second_half_seed(seed: u64) -> u64 {
+    seed ^ 0x9E37_79B9_7F4A_7C15
+}
+
+/// Two measured responses of the same analysis as one: the RMS over all their strikes of
+/// the strikes' spectra, smoothed, exactly as [`measure`] averages the strikes of several
+/// recordings (its steps 5 and 6).
+fn pool(a: MeasuredResponse, b: MeasuredResponse, smoothing_fraction: f64) -> MeasuredResponse {
+    let (na, nb) = (a.strikes.len() as f64, b.strikes.len() as f64);
+    let raw: Vec<f64> = a
+        .raw
+        .iter()
+        .zip(&b.raw)
+        .map(|(x, y)| ((na * x * x + nb * y * y) / (na + nb)).sqrt())
+        .collect();
+    let magnitude = fractional_octave_smooth(&raw, a.bin_hz, smoothing_fraction);
+    let mut strikes = a.strikes;
+    strikes.extend(
+        b.strikes
+            .into_iter()
+            .map(|s| StrikeSource { recording: 1, ..s }),
+    );
+    MeasuredResponse {
+        magnitude,
+        raw,
+        strikes,
+        ..a
+    }
+}
+
+/// `cfg.steps` nominal steps, one second apart, through the model at [`RENDER_RATE`].
+///
+/// # Errors
+/// The model is invalid.
+pub fn render_steps(
+    model: &PhysicalModel,
+    cfg: &EstimateConfig,
+    seed: u64,
+) -> Result<Vec<f32>, EstimateError> {
+    render_n_steps(model, cfg, seed, cfg.steps)
+}
+
+fn render_n_steps(
+    model: &PhysicalModel,
+    cfg: &EstimateConfig,
+    seed: u64,
+    steps: usize,
+) -> Result<Vec<f32>, EstimateError> {
+    let fs = RENDER_RATE.hz();
+    let step = nominal_step(cfg.nominal_weight_kg, cfg.nominal_cadence, fs);
+    if step.is_empty() {
+        return Err(EstimateError::InvalidSetting(
+            "nominal walker must have a positive mass and cadence",
+        ));
+    }
+    let period = RENDER_RATE.samples_in(Seconds(1.0)).max(step.len() + 1);
+    let lead = RENDER_RATE.samples_in(Seconds(0.1));
+    let block = 256;
+    let mut ground = Ground::new(model, RENDER_RATE, seed, block)?;
+    let threshold = crate::force::steps::DetectorConfig::default().on.0;
+    let mut force = vec![0.0; lead + period * steps.max(1)];
+    let mut strikes = Vec::new();
+    for s in 0..steps.max(1) {
+        let start = lead + s * period;
+        force[start..start + step.len()].copy_from_slice(&step);
+        if let Some(i) = step.iter().position(|&f| f >= threshold) {
+            strikes.push(start + i);
+        }
+    }
+    let loading = DriveKind::ForceRate.offline(&force, RENDER_RATE, Newtons(1.0));
+    let mut out = vec![0.0f32; force.len()];
+    let mut next = 0;
+    for (b, chunk) in out.chunks_mut(block).enumerate() {
+        let at = b * block;
+        let end = at + chunk.len();
+        let mut pos = at;
+        while pos < end {
+            let until = strikes
+                .get(next)
+                .copied()
+                .filter(|&s| s < end)
+                .unwrap_or(end);
+            if until > pos {
+                ground.process(&loading[pos..until], &mut chunk[pos - at..until - at]);
+                pos = until;
+            } else {
+                ground.strike(1.0);
+                next += 1;
+            }
+        }
+    }
+    Ok(out)
+}
