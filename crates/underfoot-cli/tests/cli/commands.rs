@@ -4,10 +4,10 @@ use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
+use crate::common::{assert_ok, run, s, stderr, stdout};
 use underfoot::material::{FilterCoefficients, FitRecord, Library, MaterialModel, SourceFile};
 use underfoot::signal::{Biquad, Sos};
 use underfoot::units::{Band, Hz, SampleRate};
-use crate::common::{assert_ok, run, s, stderr, stdout};
 
 /// A valid model: one resonant section (poles at radius 0.9) whose fit record is its own
 /// response, so the library accepts it exactly as a fit would have written it.
@@ -173,7 +173,7 @@ fn broken_libraries_fail_with_a_clear_message_and_stay_unchanged() {
             a: [1.0, -1.6, 1.0201],
         }]);
         lib.materials[1].filter = FilterCoefficients::from_sos(&sos);
-        serde_json::to_string_pretty(&lib).expect("json")
+        lib.to_json()
     };
     let v3 = library(&["gravel"])
         .to_json()
