@@ -507,22 +507,3 @@ fn the_document_tag_is_the_library_format() {
         FORMAT_1
     );
 }
-
-#[test]
-fn tmp_byte_identical() {
-    #[derive(serde::Serialize)]
-    struct Old<'a> {
-        format: &'a str,
-        materials: &'a [MaterialModel],
-    }
-    let lib = crate::material::builtin::builtin();
-    let mut old = serde_json::to_string_pretty(&Old {
-        format: FORMAT,
-        materials: &lib.materials,
-    })
-    .unwrap();
-    old.push('\n');
-    assert_eq!(old, lib.to_json());
-    let embedded = include_str!("../builtin.json");
-    eprintln!("same as embedded: {}", embedded == lib.to_json());
-}

@@ -9,6 +9,8 @@
 //!    response makes it large for errors no one can feel; it only counts when the level
 //!    error is also above the JND. 0.5 means the model misses half of the measured shape;
 //!    the built-in materials are at 0.04 to 0.19. The "NRMSE 1.84" is refused by
+//!    both. With [`QualityConfig::accept_poor_fit`] the model is kept, with
+//!    [`FitRecord::poor_fit`] set.
 
 use super::{QualityConfig, QualityError};
 use crate::material::FitRecord;
