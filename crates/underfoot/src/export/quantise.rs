@@ -1,5 +1,5 @@
 //! Quantising one material: the decay limit, the scaling, and the coefficients in `f32`,
-//! Q15 and Q31, each checked ([`mod@check`]).
+//! Q15 and Q31, each checked ([`mod@super::check`]).
 //!
 //! # Design of the fixed-point cascade
 //!

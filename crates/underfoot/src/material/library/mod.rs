@@ -49,7 +49,7 @@
 //! | file | what |
 //! |---|---|
 //! | `mod.rs` | the [`Library`], its errors, and finding materials in it |
-//! | [`file`](mod@file) | the library as a [`Document`](crate::document::Document): reading, writing, the locked edit |
+//! | `file.rs` | the library as a [`Document`](crate::document::Document): reading, writing, the locked edit |
 //! | [`validate`](mod@validate) | the rules of the format for one material, and for names |
 //! | [`upgrade`](mod@upgrade) | format 1 to 2 |
 

@@ -85,7 +85,7 @@ pub fn strike_to_noise(x: &[f64], rate: SampleRate, cfg: &QualityConfig) -> Deci
     Decibels::from_amplitude(peak / floor)
 }
 
-/// Check 3 and the disagreement warning of the [module docs](self), after [`check_rates`].
+/// Check 3 and the disagreement warning of the [module docs](self), after [`check_rates`](super::check_rates).
 ///
 /// # Errors
 /// [`QualityError::NoClearStrike`] naming every recording that fails, or

@@ -31,7 +31,7 @@ pub struct VoiceConfig {
 /// Which of a material's models the engine plays.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum SynthModel {
-    /// The fitted IIR filter, perturbed at every step ([`Voice`]).
+    /// The fitted IIR filter, perturbed at every step ([`Voice`](super::Voice)).
     #[default]
     Iir,
     /// The physical model calibrated from the same recordings
