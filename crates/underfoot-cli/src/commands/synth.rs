@@ -70,7 +70,7 @@ pub struct SynthArgs {
     /// Order of the low-pass at the top of the band that removes fitting artefacts (0: none).
     #[arg(long = "lowpass-order", default_value_t = 4, value_name = "N")]
     pub lowpass_order: usize,
-    /// Nominal body mass the force drives are calibrated for, in kg.
+    /// Nominal body mass the force drives are normalised for, in kg.
     #[arg(long = "weight", default_value_t = 70.0, value_name = "KG")]
     pub weight_kg: f64,
     /// About how often force readings arrive, in Hz (sets the force interpolation).

@@ -136,6 +136,16 @@ struct Tagged<'a, T> {
 pub fn to_json<T: Document>(doc: &T, origin: &str) -> Result<String, DocumentError> {
     doc.validate()
         .map_err(|e| DocumentError::invalid(origin, e))?;
+    to_json_unchecked(doc, origin)
+}
+
+/// [`to_json`] without [`Document::validate`]: the text of whatever is in memory, for a
+/// digest of it, or for a test or a fuzzer that writes a broken file on purpose. Files
+/// are written with [`save`], which validates.
+///
+/// # Errors
+/// [`DocumentError::Encode`] when serde cannot write it (a non-string map key).
+pub fn to_json_unchecked<T: Document>(doc: &T, origin: &str) -> Result<String, DocumentError> {
     let mut text = serde_json::to_string_pretty(&Tagged {
         format: tag::<T>(),
         body: doc,

@@ -13,7 +13,7 @@ pub struct MaterialBank {
 }
 
 impl MaterialBank {
-    /// Prepares every material of `library` for `rate`, calibrating the force drives with
+    /// Prepares every material of `library` for `rate`, normalising the force drives with
     /// `nominal_step` (total force of one nominal step at `rate`, see
     /// [`gait::nominal_step`](crate::force::gait::nominal_step)) for a walker of `weight`.
     ///
@@ -31,7 +31,7 @@ impl MaterialBank {
             .iter()
             .map(|m| {
                 let mut p = PreparedMaterial::prepare(m, rate, voice)?;
-                p.calibrate(nominal_step, weight);
+                p.normalise_drives(nominal_step, weight);
                 Ok(p)
             })
             .collect::<Result<Vec<_>, VoiceError>>()?;

@@ -17,9 +17,9 @@
 //! response to the heel-strike transient, darker than the recording. The tile paper
 //! drives its (physical) model with the half-wave-rectified rate of change of force,
 //! `u = α v_F`: brighter than force, still shaped by how fast the foot loads the ground.
-//! The gains of `Force` and `ForceRate` (the tile paper's `α`) are calibrated per
+//! The gains of `Force` and `ForceRate` (the tile paper's `α`) are normalised per
 //! material so that a nominal step gives the recorded energy
-//! ([`PreparedMaterial::calibrate`](crate::synthesis::PreparedMaterial::calibrate)).
+//! ([`PreparedMaterial::normalise_drives`](crate::synthesis::PreparedMaterial::normalise_drives)).
 //!
 //! **Sign of `v_F`.** The tile paper writes `v_F = -dF/dt` for `dF/dt < 0`, and says the
 //! model responds when the user *increases* pressure: its force reading falls under load
@@ -59,7 +59,7 @@ impl DriveKind {
     /// One sample of a continuous drive from the total force now and one sample ago (at
     /// `rate_hz`), normalised by `weight` newtons; 0 for [`DriveKind::Impulse`], whose
     /// impulses come from the step detector. The engine and [`offline`](Self::offline)
-    /// share it, so the calibration sees exactly the drive the engine plays.
+    /// share it, so the normalisation sees exactly the drive the engine plays.
     #[inline]
     #[must_use]
     pub fn sample(

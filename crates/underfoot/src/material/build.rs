@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use crate::analysis::{AnalysisConfig, AnalysisError, MeasuredResponse, measure};
 use crate::fit::{FitConfig, FitError, MetricGrid, Metrics, Target, fit};
-use crate::material::library::validate_name;
+use crate::material::library::{NameError, validate_name};
 use crate::material::quality::{self, QualityConfig, QualityError, RecordingsQuality};
 use crate::material::{FilterCoefficients, FitRecord, MaterialModel, SourceFile};
 use crate::physical::estimate::estimate_measured;
@@ -92,7 +92,7 @@ pub enum BuildError {
         /// The name given.
         name: String,
         /// What is wrong with it.
-        reason: String,
+        reason: NameError,
     },
     /// The recordings could not be analysed.
     #[error(transparent)]

@@ -11,5 +11,5 @@ pub mod library;
 pub mod model;
 pub mod quality;
 
-pub use library::{FORMAT, Library, LibraryError};
+pub use library::{FORMAT, InvalidLibrary, Library, LibraryError};
 pub use model::{FilterCoefficients, FitRecord, MaterialModel, SourceFile};

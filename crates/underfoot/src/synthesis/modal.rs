@@ -50,9 +50,9 @@ use crate::signal::Sos;
 use crate::signal::sos::degree;
 use crate::units::{Band, Hz, SampleRate, Seconds};
 
-/// One mode: a pole and its residue.
+/// One mode of a [`ModalFilter`]: a pole and its residue.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Mode {
+pub struct PoleResidue {
     /// The pole. For a conjugate pair, the member with positive imaginary part.
     pub pole: Complex64,
     /// The residue at [`pole`](Self::pole).
@@ -62,7 +62,7 @@ pub struct Mode {
     pub pair: bool,
 }
 
-impl Mode {
+impl PoleResidue {
     /// The mode's frequency in hertz at `rate`.
     #[must_use]
     pub fn frequency(&self, rate: SampleRate) -> f64 {
@@ -82,7 +82,7 @@ pub struct ModalFilter {
     /// The rate it runs at.
     pub rate: SampleRate,
     /// The modes.
-    pub modes: Vec<Mode>,
+    pub modes: Vec<PoleResidue>,
     /// The direct (feed-through) term `d`.
     pub direct: f64,
 }
@@ -176,7 +176,7 @@ impl ModalFilter {
                 .filter(|&(j, _)| j != k)
                 .fold(Complex64::new(1.0, 0.0), |acc, (_, &q)| acc * (1.0 - q * w));
             let residue = numerator(w) / denom;
-            modes.push(Mode {
+            modes.push(PoleResidue {
                 pole: p,
                 residue: if pair {
                     residue
@@ -214,7 +214,7 @@ impl ModalFilter {
                 // A negative real pole: a mode at the Nyquist frequency of the old rate.
                 let q =
                     Complex64::from_polar(m.pole.norm().powf(ratio), std::f64::consts::PI * ratio);
-                modes.push(Mode {
+                modes.push(PoleResidue {
                     pole: q,
                     residue: m.residue * 0.5,
                     pair: true,
@@ -225,7 +225,7 @@ impl ModalFilter {
                 } else {
                     (m.pole.ln() * ratio).exp()
                 };
-                modes.push(Mode {
+                modes.push(PoleResidue {
                     pole: if m.pair { q } else { Complex64::new(q.re, 0.0) },
                     residue: m.residue,
                     pair: m.pair,

@@ -1,0 +1,122 @@
+//! Generalisation: leave one recording out.
+//!
+//! [`leave_one_out`] fits the model on all recordings but one (the same configuration,
+//! without the physical calibration and without the gate, which the whole set has passed)
+//! and scores it against the measured response of the one left out, by the same
+//! gain-aligned distance, on the model's metric grid. Each recording is left out in turn.
+//! Beside it, the in-sample figure: the model fitted on all recordings, against the same
+//! recording alone. When the left-out distance is close to the in-sample one, the
+//! recordings were enough; when it is much larger, the model has learnt the particular
+//! steps rather than the ground, and more recordings are needed. With one recording there
+//! is nothing to leave out, and the function says so by returning `None`.
+
+use super::QualityConfig;
+use super::disagreement::aligned_lsd_db;
+use crate::analysis::measure;
+use crate::material::MaterialModel;
+use crate::material::build::{BuildConfig, BuildError, build_material};
+use crate::recording::Recording;
+use crate::units::{Decibels, Hz};
+
+/// One recording left out.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeldOut {
+    /// The recording left out.
+    pub file: String,
+    /// Its strikes.
+    pub strikes: usize,
+    /// Order of the model fitted on the others.
+    pub order: usize,
+    /// Gain-aligned LSD of the model fitted on the others against this recording.
+    pub lsd: Decibels,
+    /// Gain-aligned LSD of the model fitted on all recordings against this recording.
+    pub in_sample_lsd: Decibels,
+    /// The held-out recording's level relative to the left-out model's (the gain taken out).
+    pub gain: Decibels,
+}
+
+/// The leave-one-recording-out distances of a material; see the [module docs](self).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LeaveOneOut {
+    /// One entry per recording, in input order.
+    pub held_out: Vec<HeldOut>,
+}
+
+impl LeaveOneOut {
+    /// The mean left-out distance.
+    #[must_use]
+    pub fn mean_lsd(&self) -> Decibels {
+        mean(self.held_out.iter().map(|h| h.lsd.0))
+    }
+
+    /// The mean in-sample distance, for comparison.
+    #[must_use]
+    pub fn mean_in_sample_lsd(&self) -> Decibels {
+        mean(self.held_out.iter().map(|h| h.in_sample_lsd.0))
+    }
+}
+
+fn mean(v: impl ExactSizeIterator<Item = f64>) -> Decibels {
+    let n = v.len().max(1) as f64;
+    Decibels(v.sum::<f64>() / n)
+}
+
+/// Fits on all recordings but one, for each in turn, and scores each model on the one left
+/// out; `full` is the model fitted on all of them (for the in-sample figure). `None` with
+/// fewer than two recordings.
+///
+/// # Errors
+/// [`BuildError`] when a fit on a subset, or the measurement of a recording alone, fails.
+pub fn leave_one_out(
+    recordings: &[Recording],
+    cfg: &BuildConfig,
+    full: &MaterialModel,
+) -> Result<Option<LeaveOneOut>, BuildError> {
+    if recordings.len() < 2 {
+        return Ok(None);
+    }
+    let sub_cfg = BuildConfig {
+        physical: None,
+        quality: QualityConfig {
+            check_recordings: false,
+            accept_poor_fit: true,
+            ..cfg.quality.clone()
+        },
+        ..cfg.clone()
+    };
+    let db = |v: &[f64]| -> Vec<f64> {
+        v.iter()
+            .map(|&m| Decibels::from_amplitude(m).0)
+            .collect::<Vec<_>>()
+    };
+    let grid: Vec<Hz> = full.fit.grid_hz.iter().map(|&f| Hz(f)).collect();
+    let full_db = db(&full.fit.model);
+    let mut held_out = Vec::with_capacity(recordings.len());
+    for (i, rec) in recordings.iter().enumerate() {
+        let others: Vec<Recording> = recordings
+            .iter()
+            .enumerate()
+            .filter(|&(j, _)| j != i)
+            .map(|(_, r)| r.clone())
+            .collect();
+        let model = build_material(&full.name, &others, &sub_cfg, &mut |_| {})?;
+        let measured = measure(std::slice::from_ref(rec), &cfg.analysis)?;
+        let measured_db = db(&measured.on_grid(&grid));
+        let model_db = db(&model.fit.model);
+        let gain = measured_db
+            .iter()
+            .zip(&model_db)
+            .map(|(m, s)| m - s)
+            .sum::<f64>()
+            / measured_db.len().max(1) as f64;
+        held_out.push(HeldOut {
+            file: rec.name.clone(),
+            strikes: measured.strikes.len(),
+            order: model.order,
+            lsd: Decibels(aligned_lsd_db(&model_db, &measured_db)),
+            in_sample_lsd: Decibels(aligned_lsd_db(&full_db, &measured_db)),
+            gain: Decibels(gain),
+        });
+    }
+    Ok(Some(LeaveOneOut { held_out }))
+}

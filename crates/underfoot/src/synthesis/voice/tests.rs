@@ -1,0 +1,159 @@
+use super::*;
+use crate::force::drive::DriveKind;
+use crate::material::builtin::builtin;
+use crate::signal::noise::SplitMix64;
+use crate::units::Seconds;
+use crate::units::{Hz, SampleRate};
+use num_complex::Complex64;
+
+fn prepared(name: &str) -> PreparedMaterial {
+    let model = builtin().get(name).unwrap();
+    PreparedMaterial::prepare(model, SampleRate(48_000), &VoiceConfig::default()).unwrap()
+}
+
+#[test]
+fn voice_runs_its_prepared_response() {
+    let m = prepared("gravel");
+    let mut voice = Voice::new();
+    voice.load(&m, DriveKind::Impulse);
+    let n = 1 << 16;
+    let mut x = vec![0.0f32; n];
+    x[0] = 1.0;
+    let mut y = vec![0.0f32; n];
+    assert_eq!(voice.process(&x, &mut y), 0);
+    // A naive DFT of the impulse response at a few frequencies against the model.
+    for f in [40.0, 100.0, 250.0, 500.0] {
+        let omega = SampleRate(48_000).omega(Hz(f));
+        let dft: Complex64 = y
+            .iter()
+            .enumerate()
+            .map(|(k, v)| f64::from(*v) * Complex64::from_polar(1.0, -omega * k as f64))
+            .sum();
+        let want = m.response(omega);
+        let err = (dft - want).norm() / want.norm();
+        assert!(err < 5e-3, "{f} Hz: {dft} vs {want} ({err})");
+    }
+}
+
+/// The rate change and the post filter together: every built-in material's voice at
+/// 48 kHz has its model's response (times the rate ratio) across the band.
+#[test]
+fn every_builtin_voice_matches_its_model_in_the_band() {
+    let rate = SampleRate(48_000);
+    for model in &builtin().materials {
+        let m = PreparedMaterial::prepare(model, rate, &VoiceConfig::default()).unwrap();
+        let sos = model.sos().unwrap();
+        let ratio = rate.hz() / model.sample_rate.hz();
+        let grid = model.band_hz.log_grid(96);
+        let db: Vec<f64> = grid
+            .iter()
+            .map(|f| {
+                let want = sos.response(model.sample_rate.omega(*f)).norm() * ratio;
+                20.0 * (m.response(rate.omega(*f)).norm() / want).log10()
+            })
+            .collect();
+        let lsd = (db.iter().map(|d| d * d).sum::<f64>() / db.len() as f64).sqrt();
+        // The low-pass sits on the band's top edge; below 80% of it the match is close.
+        let inner = grid
+            .iter()
+            .zip(&db)
+            .filter(|(f, _)| f.0 < 0.8 * model.band_hz.hi.0)
+            .map(|(_, d)| d.abs())
+            .fold(0.0, f64::max);
+        println!("{}: lsd {lsd:.2} dB, worst {inner:.2} dB", model.name);
+        // Most are within 0.5 dB. Two fits lean on the aliases of broad modes near the
+        // 1 kHz Nyquist frequency more than the residue solve can make up for at
+        // 48 kHz (impulse invariance alone is 10 dB off for wood): glass 0.72 dB and
+        // wood 1.26 dB RMS (2.4 dB worst), a known gap of the rate change.
+        assert!(
+            lsd < 1.3 && inner < 2.5,
+            "{}: lsd {lsd:.2} dB, worst {inner:.2} dB",
+            model.name
+        );
+    }
+}
+
+/// Every step sounds a little different: the magnitude spectrum of each perturbed
+/// step differs from the unperturbed one by a few percent (RMS over the band), and
+/// no two steps are alike.
+#[test]
+fn each_step_has_its_own_spectrum_a_few_percent_off() {
+    let rate = SampleRate(48_000);
+    let model = builtin().get("gravel").unwrap();
+    let m = PreparedMaterial::prepare(model, rate, &VoiceConfig::default()).unwrap();
+    let grid = model.band_hz.log_grid(48);
+    let n = rate.samples_in(Seconds(0.5));
+    let spectrum = |voice: &mut Voice| -> Vec<f64> {
+        let mut x = vec![0.0f32; n];
+        x[0] = 1.0;
+        let mut y = vec![0.0f32; n];
+        voice.reset();
+        voice.process(&x, &mut y);
+        grid.iter()
+            .map(|f| {
+                let omega = rate.omega(*f);
+                y.iter()
+                    .enumerate()
+                    .map(|(k, v)| f64::from(*v) * Complex64::from_polar(1.0, -omega * k as f64))
+                    .sum::<Complex64>()
+                    .norm()
+            })
+            .collect()
+    };
+    let mut voice = Voice::new();
+    voice.load(&m, DriveKind::Impulse);
+    let base = spectrum(&mut voice);
+    let mut rng = SplitMix64::new(11);
+    let mut steps = Vec::new();
+    for _ in 0..20 {
+        voice.perturb(&mut rng, 0.01);
+        steps.push(spectrum(&mut voice));
+    }
+    let rel = |a: &[f64], b: &[f64]| {
+        (a.iter()
+            .zip(b)
+            .map(|(x, y)| ((x - y) / y).powi(2))
+            .sum::<f64>()
+            / a.len() as f64)
+            .sqrt()
+    };
+    let changes: Vec<f64> = steps.iter().map(|s| rel(s, &base)).collect();
+    let mean = changes.iter().sum::<f64>() / changes.len() as f64;
+    assert!(
+        changes.iter().all(|c| (0.002..0.1).contains(c)),
+        "{changes:?}"
+    );
+    assert!((0.005..0.05).contains(&mean), "mean change {mean}");
+    for i in 0..steps.len() {
+        for j in i + 1..steps.len() {
+            assert!(rel(&steps[i], &steps[j]) > 1e-3, "steps {i} and {j} alike");
+        }
+    }
+    println!(
+        "per-step spectral change: mean {:.2}%, max {:.2}%",
+        100.0 * mean,
+        100.0 * changes.iter().fold(0.0f64, |m, c| m.max(*c))
+    );
+}
+
+#[test]
+fn perturbation_keeps_poles_and_changes_numerators_by_about_one_percent() {
+    let m = prepared("snow");
+    let mut voice = Voice::new();
+    voice.load(&m, DriveKind::Impulse);
+    let poles: Vec<_> = voice.poles().collect();
+    let mut rng = SplitMix64::new(3);
+    let mut ratios = Vec::new();
+    for _ in 0..200 {
+        voice.perturb(&mut rng, 0.01);
+        assert_eq!(voice.poles().collect::<Vec<_>>(), poles);
+        let (re, _, _) = voice.numerators();
+        for (k, r) in re.iter().enumerate() {
+            if m.res_re[k] != 0.0 {
+                ratios.push(f64::from(r / m.res_re[k]) - 1.0);
+            }
+        }
+    }
+    let sd = (ratios.iter().map(|r| r * r).sum::<f64>() / ratios.len() as f64).sqrt();
+    assert!((sd - 0.01).abs() < 0.001, "{sd}");
+}
