@@ -18,7 +18,8 @@ use underfoot::compensation::equalizer::{
     EqualizerConfig, EqualizerFilter, Realisation, SpectralWeights, equalize,
 };
 use underfoot::compensation::filterbank::{FilterBank, FilterBankConfig, Window};
-use underfoot::compensation::sweep::{SimulatedTile, Sweep, SweepConfig, TileConfig};
+use underfoot::compensation::sweep::{Sweep, SweepConfig};
+use underfoot::sim::{SimulatedTile, TileConfig};
 use underfoot::units::SampleRate;
 
 const RATE: SampleRate = SampleRate(48_000);

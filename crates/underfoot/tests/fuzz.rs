@@ -595,8 +595,9 @@ fn the_harness_catches_panics_slow_inputs_and_large_allocations() {
 /// the parser accepts and reach past its first check.
 #[test]
 fn the_seeds_parse() {
-    use underfoot::compensation::files::{EqualizerFile, LimbFile, ResponseFile, from_json_str};
+    use underfoot::compensation::files::{EqualizerFile, LimbFile, ResponseFile};
     use underfoot::compensation::table::UserTable;
+    use underfoot::document::from_json;
     use underfoot::force::calibration::{SensorCalibration, session_from_csv_str};
     use underfoot::force::gait::GaitConfig;
     use underfoot::force::track::ForceTrack;
@@ -642,9 +643,10 @@ fn the_seeds_parse() {
         .expect("an interface seed");
     }
     let compensation = seeds("compensation_json");
-    let path = Path::new("seed.json");
-    from_json_str::<ResponseFile>(&text(&compensation[0]), path).expect("a response seed");
-    from_json_str::<EqualizerFile>(&text(&compensation[1]), path).expect("an equalizer seed");
-    from_json_str::<LimbFile>(&text(&compensation[2]), path).expect("a limb seed");
-    UserTable::from_json_str(&text(&compensation[3]), path).expect("a table seed");
+    let origin = "seed.json";
+    from_json::<ResponseFile>(&text(&compensation[0]), origin).expect("a response seed");
+    from_json::<EqualizerFile>(&text(&compensation[1]), origin).expect("an equalizer seed");
+    from_json::<LimbFile>(&text(&compensation[2]), origin).expect("a limb seed");
+    from_json::<UserTable>(&text(&compensation[3]), origin).expect("a table seed");
+    from_json::<ResponseFile>(&text(&compensation[4]), origin).expect("a legacy response seed");
 }

@@ -273,9 +273,9 @@ fn adapting_the_equalizer_never_allocates_or_frees() {
     use underfoot::compensation::equalizer::{
         EqualizerConfig, EqualizerFilter, Realisation, SpectralWeights,
     };
-    use underfoot::compensation::sweep::{SimulatedTile, TileConfig};
     use underfoot::safety::{Limiter, LimiterReport};
     use underfoot::signal::noise::SplitMix64;
+    use underfoot::sim::{SimulatedTile, TileConfig};
 
     let rate = SampleRate(48_000);
     let weights = SpectralWeights::flat(EqualizerConfig::default(), rate).unwrap();

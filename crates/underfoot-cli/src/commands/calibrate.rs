@@ -9,16 +9,16 @@ use underfoot::atomic_file::OutputFile;
 use underfoot::compensation::equalizer::{
     Equalized, EqualizerConfig, EqualizerFilter, PassReport, Realisation, equalize,
 };
-use underfoot::compensation::files::{self, EqualizerFile, LimbFile, PassFigures, ResponseFile};
-use underfoot::compensation::limb::{
-    DEFAULT_G2, LimbFitConfig, LimbModel, LimbParams, SimulatedUser, fit_limb,
-};
+use underfoot::compensation::files::{EqualizerFile, LimbFile, PassFigures, ResponseFile};
+use underfoot::compensation::limb::{DEFAULT_G2, LimbFitConfig, LimbModel, LimbParams, fit_limb};
 use underfoot::compensation::sweep::{
-    Device, FrequencyResponse, MAX_SWEEP_DURATION, MAX_SWEEP_REPEATS, MeasuredDevice,
-    SimulatedTile, Sweep, SweepConfig, TileConfig, measure,
+    Device, FrequencyResponse, MAX_SWEEP_DURATION, MAX_SWEEP_REPEATS, MeasuredDevice, Sweep,
+    SweepConfig, measure,
 };
+use underfoot::document;
 use underfoot::force::calibration::{CurveKind, CurveModel, SensorCalibration, read_session};
 use underfoot::io::spec::{self, SpecError};
+use underfoot::sim::{SimulatedTile, SimulatedUser, TileConfig};
 use underfoot::units::{Band, Decibels, Hz, SampleRate, Seconds};
 
 use crate::output::emit;
@@ -209,7 +209,7 @@ impl SweepSettings {
                     self.load.is_none(),
                     "--load simulates a user on the simulated tile; a replayed measurement already holds its load"
                 );
-                let file: ResponseFile = files::load(path)?;
+                let file: ResponseFile = document::load(path)?;
                 anyhow::ensure!(
                     file.rate == rate,
                     "{} was measured at {} Hz; use --rate {}",
@@ -416,7 +416,7 @@ impl UserArg {
                 ),
             )),
             UserArg::File(path) => {
-                let file: LimbFile = files::load(path)?;
+                let file: LimbFile = document::load(path)?;
                 Ok((file.model, path.display().to_string()))
             }
         }
@@ -426,7 +426,7 @@ impl UserArg {
     pub fn band(&self) -> anyhow::Result<Band> {
         match self {
             UserArg::Params(_) => Ok(Band::new(40.0, 1024.0)),
-            UserArg::File(path) => Ok(files::load::<LimbFile>(path)?.band),
+            UserArg::File(path) => Ok(document::load::<LimbFile>(path)?.band),
         }
     }
 }
@@ -523,7 +523,7 @@ fn limb(args: &LimbArgs) -> anyhow::Result<()> {
     let loaded: Vec<ResponseFile> = args
         .sweeps
         .iter()
-        .map(|p| files::load(p))
+        .map(|p| document::load(p))
         .collect::<Result<_, _>>()?;
     let first = &loaded[0];
     for (file, path) in loaded.iter().zip(&args.sweeps) {
@@ -547,7 +547,7 @@ fn limb(args: &LimbArgs) -> anyhow::Result<()> {
             .join(", ")
     );
     if let Some(path) = &args.unloaded {
-        let unloaded: ResponseFile = files::load(path)?;
+        let unloaded: ResponseFile = document::load(path)?;
         anyhow::ensure!(
             unloaded.freqs_hz == first.freqs_hz,
             "{} is on another frequency grid than the loaded sweeps",
@@ -564,7 +564,7 @@ fn limb(args: &LimbArgs) -> anyhow::Result<()> {
     let seconds = started.elapsed().as_secs_f64();
     let p = fit.model.params;
     let file = LimbFile::new(fit.model, first.band, fit.rms_error_db, description);
-    files::save_to(&out, &file)?;
+    document::save_to(&out, &file)?;
     let pct = |i: usize| {
         let s = fit.relative_std[i];
         if s.is_finite() {
@@ -632,7 +632,7 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
     let (mut device, mut description) = s.device(&args.device)?;
     let response = match &args.eq {
         Some(path) => {
-            let eq: EqualizerFile = files::load(path)?;
+            let eq: EqualizerFile = document::load(path)?;
             let mut filter = EqualizerFilter::new(&eq.weights, eq.realisation)
                 .with_context(|| format!("preparing the equalizer of {}", path.display()))?;
             anyhow::ensure!(
@@ -661,7 +661,7 @@ fn sweep(args: &SweepArgs) -> anyhow::Result<()> {
         s.repeats,
         description,
     );
-    files::save_to(&out, &file)?;
+    document::save_to(&out, &file)?;
     emit(&format!(
         "measured {}: {} points over {}-{} Hz, {:.2} dB from flat (RMS); wrote {}\n",
         file.description,
@@ -720,7 +720,7 @@ fn equalize_cmd(args: &EqualizeArgs) -> anyhow::Result<()> {
         Realisation::LowDelay { .. } => 0.0,
     };
     let file = EqualizerFile::new(eq.weights, realisation, passes.clone(), description);
-    files::save_to(&out, &file)?;
+    document::save_to(&out, &file)?;
     let rows: Vec<Vec<String>> = passes
         .iter()
         .map(|p| {

@@ -4,8 +4,9 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::{Args, Subcommand};
-use underfoot::compensation::files::{self, EqualizerFile, LimbFile};
+use underfoot::compensation::files::{EqualizerFile, LimbFile};
 use underfoot::compensation::table::{UserEntry, UserTable};
+use underfoot::document;
 
 use underfoot::atomic_file::OutputFile;
 
@@ -58,8 +59,8 @@ fn add(args: &AddArgs) -> anyhow::Result<()> {
     // The table is edited in place: checked against the output policy
     // (underfoot::atomic_file) first, then read, changed and written under its edit lock.
     let out = OutputFile::check(&args.table, &[&args.eq, &args.user])?;
-    let eq: EqualizerFile = files::load(&args.eq)?;
-    let user: LimbFile = files::load(&args.user)?;
+    let eq: EqualizerFile = document::load(&args.eq)?;
+    let user: LimbFile = document::load(&args.user)?;
     let name = match &args.name {
         Some(n) => n.clone(),
         None => args
@@ -78,7 +79,7 @@ fn add(args: &AddArgs) -> anyhow::Result<()> {
     let freqs = weights.frequencies();
     let _lock = out.lock()?;
     let mut users = if args.table.exists() {
-        let t = UserTable::load(&args.table)?;
+        let t = document::load::<UserTable>(&args.table)?;
         anyhow::ensure!(
             t.freqs == freqs,
             "{} holds curves on another grid than {} (another rate or bank size)",
@@ -94,7 +95,7 @@ fn add(args: &AddArgs) -> anyhow::Result<()> {
         params: user.model.params,
         weights_db: weights.gains_db,
     })?;
-    users.save_to(&out)?;
+    document::save_to(&out, &users)?;
     emit(&format!(
         "{} {name} in {}: {} user(s)\n",
         if replaced.is_some() {
@@ -108,7 +109,7 @@ fn add(args: &AddArgs) -> anyhow::Result<()> {
 }
 
 fn show(args: &ShowArgs) -> anyhow::Result<()> {
-    let users = UserTable::load(&args.table)?;
+    let users = document::load::<UserTable>(&args.table)?;
     let rows: Vec<Vec<String>> = users
         .entries
         .iter()

@@ -6,8 +6,9 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::Args;
 use underfoot::compensation::equalizer::Realisation;
-use underfoot::compensation::files::{self, EqualizerFile};
+use underfoot::compensation::files::EqualizerFile;
 use underfoot::compensation::table::UserTable;
+use underfoot::document;
 use underfoot::engine::{EngineConfig, MaterialBank};
 use underfoot::force::drive::DriveKind;
 use underfoot::force::gait::nominal_step;
@@ -167,7 +168,7 @@ impl SynthArgs {
             ..EngineConfig::default()
         };
         if let Some(path) = &self.eq {
-            let eq: EqualizerFile = files::load(path)?;
+            let eq: EqualizerFile = document::load(path)?;
             anyhow::ensure!(
                 eq.weights.rate == rate,
                 "{} equalizes at {} Hz; use --rate {}",
@@ -177,7 +178,7 @@ impl SynthArgs {
             );
             let mut weights = eq.weights;
             if let (Some(table), Some(user)) = (&self.eq_table, &self.user) {
-                let users = UserTable::load(table)?;
+                let users = document::load::<UserTable>(table)?;
                 anyhow::ensure!(
                     users.freqs == weights.frequencies(),
                     "{} holds curves on another grid than {}",

@@ -1012,14 +1012,14 @@ fn a_compensation_session_on_the_simulated_tile() {
         "--out",
         s(&eq),
     ]));
-    assert!(err.contains("kind \"equalizer\""), "{err}");
+    assert!(err.contains("format \"underfoot.equalizer/1\""), "{err}");
     assert_eq!(fs::read(&eq).unwrap(), before);
     let newer = p("newer.json");
     fs::write(
         &newer,
         fs::read_to_string(&unloaded)
             .unwrap()
-            .replace("\"version\": 1", "\"version\": 2"),
+            .replace("frequency-response/1", "frequency-response/2"),
     )
     .unwrap();
     let err = assert_error(&run(&[

@@ -1,130 +1,40 @@
-//! The files of the compensation workflow: a measured response, an equalizer, a user's
-//! limb model, and the table of users ([`table`](mod@super::table)). Each is JSON with a `kind` and a `version`, checked on load before
+//! The files of the compensation workflow: a measured response, an equalizer and a user's
+//! limb model (the table of users is [`UserTable`](super::table::UserTable)).
+//!
+//! Each is a [`Document`] of the one [document layer](crate::document): JSON whose first
+//! key is its format tag, `"format": "underfoot.<kind>/1"`, checked on load before
 //! anything else, so that handing one command another command's file, or a file from a
-//! newer version, gets a message saying so. Writes go to a temporary file renamed over the
-//! target, so a failed write never destroys a file that was there.
-
-use std::path::Path;
+//! newer version, gets a message saying so; read with [`document::load`] and written with
+//! [`document::save`] (a temporary file renamed over the target, so a failed write never
+//! destroys a file that was there).
+//!
+//! | type | kind | written by |
+//! |---|---|---|
+//! | [`ResponseFile`] | `frequency-response` | `underfoot calibrate sweep` |
+//! | [`EqualizerFile`] | `equalizer` | `underfoot calibrate equalize` |
+//! | [`LimbFile`] | `limb-model` | `underfoot calibrate limb` |
+//! | [`UserTable`](super::table::UserTable) | `user-table` | `underfoot eq-table add` |
+//!
+//! Files written before the document layer carried `"kind"` and `"version": 1` keys
+//! instead of the tag; they still load ([`Document::LEGACY_KIND`]), and are written back
+//! with the tag.
+//!
+//! [`document::load`]: crate::document::load
+//! [`document::save`]: crate::document::save
 
 use num_complex::Complex64;
-use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use super::CompensationError;
 use super::equalizer::{PassReport, Realisation, SpectralWeights};
 use super::limb::LimbModel;
 use super::sweep::FrequencyResponse;
-use crate::atomic_file::{AtomicWriteError, OutputFile};
+use crate::document::Document;
 use crate::units::{Band, Hz, SampleRate};
-
-/// The version of every compensation file this build reads and writes.
-pub const FORMAT_VERSION: u32 = 1;
-
-/// A compensation file type.
-pub trait Document: Serialize + DeserializeOwned {
-    /// The `kind` tag.
-    const KIND: &'static str;
-    /// Checks what serde cannot: lengths, finiteness, ranges.
-    ///
-    /// # Errors
-    /// What is wrong.
-    fn validate(&self) -> Result<(), CompensationError>;
-}
-
-fn file_error(path: &Path, reason: impl Into<String>) -> CompensationError {
-    CompensationError::File {
-        path: path.display().to_string(),
-        reason: reason.into(),
-    }
-}
-
-/// A refused or failed write of `path`, with its cause (which the error's own message
-/// does not repeat).
-pub(crate) fn write_error(path: &Path, e: &AtomicWriteError) -> CompensationError {
-    file_error(path, format!("{e}: {}", e.source))
-}
-
-/// Reads a document of type `T`.
-///
-/// # Errors
-/// [`CompensationError::File`] for a missing or unreadable file, bad JSON, another kind
-/// of file, another version, or content that fails validation.
-pub fn load<T: Document>(path: &Path) -> Result<T, CompensationError> {
-    let text = crate::limits::read_to_string_capped(path, crate::limits::MAX_DOCUMENT_BYTES)
-        .map_err(|e| file_error(path, e.to_string()))?;
-    from_json_str(&text, path)
-}
-
-/// Parses and checks a document of type `T` held in memory, as [`load`] does a file;
-/// `path` names it in errors.
-///
-/// # Errors
-/// As [`load`], except for reading.
-pub fn from_json_str<T: Document>(text: &str, path: &Path) -> Result<T, CompensationError> {
-    let value: serde_json::Value =
-        serde_json::from_str(text).map_err(|e| file_error(path, format!("not JSON: {e}")))?;
-    let kind = value.get("kind").and_then(serde_json::Value::as_str);
-    if kind != Some(T::KIND) {
-        return Err(file_error(
-            path,
-            format!(
-                "{}, expected one of kind {:?}",
-                kind.map_or_else(
-                    || "not a compensation file (no \"kind\")".to_string(),
-                    |k| format!("a file of kind {k:?}")
-                ),
-                T::KIND
-            ),
-        ));
-    }
-    let version = value.get("version").and_then(serde_json::Value::as_u64);
-    if version != Some(u64::from(FORMAT_VERSION)) {
-        return Err(file_error(
-            path,
-            format!(
-                "format version {}, this build reads version {FORMAT_VERSION}",
-                version.map_or_else(|| "missing".to_string(), |v| v.to_string())
-            ),
-        ));
-    }
-    let doc: T =
-        serde_json::from_value(value).map_err(|e| file_error(path, format!("malformed: {e}")))?;
-    doc.validate()
-        .map_err(|e| file_error(path, format!("invalid: {e}")))?;
-    Ok(doc)
-}
-
-/// Writes a document atomically.
-///
-/// # Errors
-/// [`CompensationError::File`] when it cannot be written (the old file is kept).
-pub fn save<T: Document>(path: &Path, doc: &T) -> Result<(), CompensationError> {
-    let out = OutputFile::check(path, &[]).map_err(|e| write_error(path, &e))?;
-    save_to(&out, doc)
-}
-
-/// [`save`] to an output the caller checked against the output policy
-/// ([`crate::atomic_file`]) together with its inputs.
-///
-/// # Errors
-/// As [`save`].
-pub fn save_to<T: Document>(out: &OutputFile, doc: &T) -> Result<(), CompensationError> {
-    let path = out.path();
-    doc.validate()?;
-    let mut text =
-        serde_json::to_string_pretty(doc).map_err(|e| file_error(path, e.to_string()))?;
-    text.push('\n');
-    out.write(text.as_bytes())
-        .map_err(|e| write_error(path, &e))
-}
 
 /// A measured frequency response (`underfoot calibrate sweep`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ResponseFile {
-    /// Always `"frequency-response"`.
-    pub kind: String,
-    /// [`FORMAT_VERSION`].
-    pub version: u32,
     /// What was measured, for people (device, load, equalizer, noise).
     pub description: String,
     /// The rate of the measurement.
@@ -154,8 +64,6 @@ impl ResponseFile {
         description: impl Into<String>,
     ) -> Self {
         Self {
-            kind: Self::KIND.to_string(),
-            version: FORMAT_VERSION,
             description: description.into(),
             rate,
             band,
@@ -184,6 +92,10 @@ impl ResponseFile {
 
 impl Document for ResponseFile {
     const KIND: &'static str = "frequency-response";
+    const VERSION: u32 = 1;
+    const LEGACY_KIND: Option<&'static str> = Some("frequency-response");
+    const DESCRIPTION: &'static str = "measured response";
+    type Invalid = CompensationError;
 
     fn validate(&self) -> Result<(), CompensationError> {
         let n = self.freqs_hz.len();
@@ -245,10 +157,6 @@ impl From<&PassReport> for PassFigures {
 /// A device equalizer (`underfoot calibrate equalize`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EqualizerFile {
-    /// Always `"equalizer"`.
-    pub kind: String,
-    /// [`FORMAT_VERSION`].
-    pub version: u32,
     /// What it equalizes, for people.
     pub description: String,
     /// The weights.
@@ -269,8 +177,6 @@ impl EqualizerFile {
         description: impl Into<String>,
     ) -> Self {
         Self {
-            kind: Self::KIND.to_string(),
-            version: FORMAT_VERSION,
             description: description.into(),
             weights,
             realisation,
@@ -281,6 +187,10 @@ impl EqualizerFile {
 
 impl Document for EqualizerFile {
     const KIND: &'static str = "equalizer";
+    const VERSION: u32 = 1;
+    const LEGACY_KIND: Option<&'static str> = Some("equalizer");
+    const DESCRIPTION: &'static str = "equalizer";
+    type Invalid = CompensationError;
 
     fn validate(&self) -> Result<(), CompensationError> {
         self.weights.validate()?;
@@ -300,10 +210,6 @@ impl Document for EqualizerFile {
 /// A user's fitted limb model (`underfoot calibrate limb`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LimbFile {
-    /// Always `"limb-model"`.
-    pub kind: String,
-    /// [`FORMAT_VERSION`].
-    pub version: u32,
     /// Whose limb, measured how, for people.
     pub description: String,
     /// The fitted model.
@@ -324,8 +230,6 @@ impl LimbFile {
         description: impl Into<String>,
     ) -> Self {
         Self {
-            kind: Self::KIND.to_string(),
-            version: FORMAT_VERSION,
             description: description.into(),
             model,
             band,
@@ -336,6 +240,10 @@ impl LimbFile {
 
 impl Document for LimbFile {
     const KIND: &'static str = "limb-model";
+    const VERSION: u32 = 1;
+    const LEGACY_KIND: Option<&'static str> = Some("limb-model");
+    const DESCRIPTION: &'static str = "limb model";
+    type Invalid = CompensationError;
 
     fn validate(&self) -> Result<(), CompensationError> {
         self.model.validate()?;
@@ -355,6 +263,7 @@ impl Document for LimbFile {
 mod tests {
     use super::*;
     use crate::compensation::equalizer::EqualizerConfig;
+    use crate::document::{DocumentError, from_json, load, save, to_json};
 
     const RATE: SampleRate = SampleRate(48_000);
 
@@ -388,12 +297,12 @@ mod tests {
         // Another version.
         let text = std::fs::read_to_string(&path)
             .unwrap()
-            .replace("\"version\": 1", "\"version\": 7");
+            .replace("frequency-response/1", "frequency-response/7");
         std::fs::write(&path, text).unwrap();
         let err = load::<ResponseFile>(&path).unwrap_err().to_string();
         assert!(err.contains("version 7"), "{err}");
         // Not JSON, missing, truncated.
-        std::fs::write(&path, "{\"kind\": \"freq").unwrap();
+        std::fs::write(&path, "{\"format\": \"underfoot.freq").unwrap();
         assert!(load::<ResponseFile>(&path).is_err());
         assert!(load::<ResponseFile>(&dir.path().join("none.json")).is_err());
     }
@@ -411,8 +320,63 @@ mod tests {
         assert_eq!(load::<EqualizerFile>(&path).unwrap(), good);
         let mut short = good;
         short.weights.gains_db.pop();
-        let text = serde_json::to_string(&short).unwrap();
+        // The tag by hand: saving would refuse the short curve before writing it.
+        let body = serde_json::to_string(&short).unwrap();
+        let text = format!("{{\"format\": \"underfoot.equalizer/1\", {}", &body[1..]);
         std::fs::write(&path, text).unwrap();
         assert!(load::<EqualizerFile>(&path).is_err());
+    }
+
+    /// The files written before the document layer, with `"kind"` and `"version"` keys,
+    /// still load, as what they held.
+    #[test]
+    fn files_with_the_old_header_still_load() {
+        fn legacy<T: Document>(doc: &T) -> String {
+            let tag = format!("\"format\": \"underfoot.{}/1\"", T::KIND);
+            let json = to_json(doc, "test").unwrap();
+            assert!(json.contains(&tag), "{json}");
+            json.replace(
+                &tag,
+                &format!("\"kind\": \"{}\",\n  \"version\": 1", T::KIND),
+            )
+        }
+        let weights = SpectralWeights::flat(EqualizerConfig::default(), RATE).unwrap();
+        let response = ResponseFile::new(&response(), RATE, Band::new(40.0, 1024.0), 3, "old");
+        let equalizer =
+            EqualizerFile::new(weights, Realisation::LowDelay { taps: 64 }, vec![], "old");
+        let limb = LimbFile::new(
+            LimbModel::new(
+                crate::compensation::limb::LimbParams::TABLE1_MEAN,
+                0.005,
+                1.0,
+            )
+            .unwrap(),
+            Band::new(40.0, 1024.0),
+            0.1,
+            "old",
+        );
+        assert_eq!(
+            from_json::<ResponseFile>(&legacy(&response), "old").unwrap(),
+            response
+        );
+        assert_eq!(
+            from_json::<EqualizerFile>(&legacy(&equalizer), "old").unwrap(),
+            equalizer
+        );
+        assert_eq!(from_json::<LimbFile>(&legacy(&limb), "old").unwrap(), limb);
+        // As the first version wrote it, byte for byte.
+        let v1 = "{\n  \"kind\": \"limb-model\",\n  \"version\": 1,\n  \"description\": \"anna\",\n  \
+                  \"model\": {\n    \"params\": {\n      \"b3_k3\": 0.0037,\n      \"k2_m2\": 5800000.0,\n      \
+                  \"b2_m2\": 2402.0\n    },\n    \"g2\": 0.005,\n    \"level\": 1.0\n  },\n  \
+                  \"band\": [\n    40.0,\n    1024.0\n  ],\n  \"rms_error_db\": 0.1\n}\n";
+        let old: LimbFile = from_json(v1, "anna.json").unwrap();
+        assert_eq!(old.description, "anna");
+        assert_eq!(old.model.params.b2_m2, 2402.0);
+        // An old header of another kind, or of another version, is refused as before.
+        let e = from_json::<ResponseFile>(v1, "anna.json").unwrap_err();
+        assert!(matches!(e, DocumentError::WrongKind { .. }), "{e}");
+        let e = from_json::<LimbFile>(&v1.replace("\"version\": 1", "\"version\": 2"), "a")
+            .unwrap_err();
+        assert!(e.to_string().contains("version 2"), "{e}");
     }
 }

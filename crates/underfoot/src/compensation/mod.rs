@@ -6,24 +6,29 @@
 //!
 //! - [`filterbank`]: a uniform FFT analysis-synthesis filter bank (weighted overlap-add),
 //!   whose sub-band gains are the equalizer's spectral weights;
-//! - [`sweep`]: the frequency response of a device from exponential sine sweeps, and a
-//!   simulated tile to measure where no hardware is at hand;
+//! - [`sweep`]: the frequency response of a device from exponential sine sweeps, and the
+//!   [`Device`](sweep::Device) it is measured on;
 //! - [`equalizer`]: the spectral weights of the unloaded device, found by successive
 //!   sweeps (equations (4)-(5)), realised by the bank or as a low-delay minimum-phase
 //!   filter ([`fir`]), and the older static inverse FIR for comparison;
 //! - [`adapt`]: the weights kept right while a person stands and walks on the tile, from
 //!   the drive and the accelerometer (Welch H1 estimate of the loaded device);
 //! - [`limb`]: the rheological model of the lower limb (equations (1)-(3)), its bounded
-//!   fit to a loaded-over-unloaded sweep, its inverse `Z_c` as a compensation filter, and a
-//!   simulated user standing on the simulated tile;
+//!   fit to a loaded-over-unloaded sweep, and its inverse `Z_c` as a compensation filter;
 //! - [`table`]: the table of users: each user's equalizer curve, interpolated for a new
 //!   user's limb parameters;
-//! - [`files`]: the measured responses, equalizers, limb models and user tables the
-//!   workflow writes, versioned and written atomically;
+//! - [`files`]: the measured responses, equalizers and limb models the workflow writes,
+//!   [documents](crate::document) like the table of users;
 //! - [`chain`]: the equalizer and limb filter as the engine runs them on each channel,
 //!   before the limiter.
 //!
-//! Set-up allocates; the per-sample paths never do.
+//! The simulated tile and user that stand in for the hardware and a person, in the tests
+//! and on the command line (`--device simulated`), are in [`crate::sim`].
+//!
+//! Set-up allocates; the per-sample paths never do. Errors are [`CompensationError`];
+//! reading and writing the files is the [document layer](crate::document)'s, with its
+//! [`DocumentError`](crate::document::DocumentError) (whose validation reason is a
+//! [`CompensationError`]).
 
 pub mod adapt;
 pub mod chain;
@@ -67,14 +72,6 @@ pub enum CompensationError {
         /// What went wrong.
         reason: String,
     },
-    /// A compensation file cannot be read or written.
-    #[error("{path}: {reason}")]
-    File {
-        /// The file.
-        path: String,
-        /// What is wrong with it.
-        reason: String,
-    },
     /// A signal holds a value that is not finite.
     #[error("{what}: sample {index} is not finite")]
     NonFinite {
@@ -108,4 +105,15 @@ pub enum CompensationError {
         /// Which filter, and why.
         what: &'static str,
     },
+}
+
+impl CompensationError {
+    /// [`CompensationError::InvalidParameter`]: `name` is `value`, outside `expected`.
+    pub(crate) fn invalid(name: &'static str, value: f64, expected: &'static str) -> Self {
+        Self::InvalidParameter {
+            name,
+            value,
+            expected,
+        }
+    }
 }

@@ -23,18 +23,21 @@
 //!
 //! # File
 //!
-//! JSON, `{"kind": "user-table", "version": 1, "freqs": [...], "entries": [{"name",
-//! "params", "weights_db"}]}`, read and written like the other compensation
-//! [`files`](mod@super::files): kind and version checked first, written to a temporary
-//! file renamed over the target, so a reader never sees half a table.
-
-use std::path::Path;
+//! JSON, `{"format": "underfoot.user-table/1", "freqs": [...], "entries": [{"name",
+//! "params", "weights_db"}]}`: a [`Document`] read and written like the other compensation
+//! [`files`](mod@super::files) ([`document::load`], [`document::save`]): the tag checked
+//! first, every entry checked as [`UserTable::add`] checks it, written to a temporary file
+//! renamed over the target, so a reader never sees half a table. Tables written before the
+//! document layer, with `"kind": "user-table"` and `"version": 1`, still load.
+//!
+//! [`document::load`]: crate::document::load
+//! [`document::save`]: crate::document::save
 
 use serde::{Deserialize, Serialize};
 
 use super::CompensationError;
-use super::files::{self, Document, FORMAT_VERSION};
 use super::limb::LimbParams;
+use crate::document::Document;
 use crate::units::Hz;
 
 /// The scale of each log-parameter `[ln b3/k3, ln k2/m2, ln b2/m2]` in the interpolation's
@@ -53,24 +56,12 @@ pub struct UserEntry {
     pub weights_db: Vec<f64>,
 }
 
-/// Known users' equalizer curves on a common frequency grid.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// Known users' equalizer curves on a common frequency grid; the `user-table` file
+/// ([`Document`]).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct UserTable {
     /// The frequencies of every curve, ascending.
-    pub freqs: Vec<Hz>,
-    /// The users.
-    pub entries: Vec<UserEntry>,
-}
-
-/// The file layout: a [`Document`] of kind `"user-table"`.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TableFile {
-    /// Always `"user-table"`.
-    pub kind: String,
-    /// [`FORMAT_VERSION`].
-    pub version: u32,
-    /// The grid.
     pub freqs: Vec<Hz>,
     /// The users.
     pub entries: Vec<UserEntry>,
@@ -95,26 +86,7 @@ impl UserTable {
     /// [`CompensationError::InvalidParameter`] unless they are finite, non-negative and
     /// strictly ascending.
     pub fn new(freqs: Vec<Hz>) -> Result<Self, CompensationError> {
-        if freqs.is_empty() {
-            return Err(CompensationError::Empty {
-                what: "frequency grid",
-            });
-        }
-        // 0 Hz is allowed: an equalizer's bins start at DC.
-        if let Some(f) = freqs.iter().find(|f| !(f.0.is_finite() && f.0 >= 0.0)) {
-            return Err(CompensationError::InvalidParameter {
-                name: "freqs",
-                value: f.0,
-                expected: "finite, >= 0 Hz",
-            });
-        }
-        if let Some(w) = freqs.windows(2).find(|w| w[1].0 <= w[0].0) {
-            return Err(CompensationError::InvalidParameter {
-                name: "freqs",
-                value: w[1].0,
-                expected: "strictly ascending",
-            });
-        }
+        check_grid(&freqs)?;
         Ok(Self {
             freqs,
             entries: Vec::new(),
@@ -195,94 +167,62 @@ impl UserTable {
         }
         Ok(out)
     }
-
-    /// Reads a table from `path`.
-    ///
-    /// # Errors
-    /// [`CompensationError::File`] when the file cannot be read, is not a user table of
-    /// this version, or holds an invalid grid or entry or a name twice.
-    pub fn load(path: &Path) -> Result<Self, CompensationError> {
-        let file: TableFile = files::load(path)?;
-        file.into_table()
-    }
-
-    /// Parses and checks a table held in memory, as [`UserTable::load`] does a file;
-    /// `path` names it in errors.
-    ///
-    /// # Errors
-    /// As [`UserTable::load`], except for reading.
-    pub fn from_json_str(text: &str, path: &Path) -> Result<Self, CompensationError> {
-        let file: TableFile = files::from_json_str(text, path)?;
-        file.into_table()
-    }
-
-    /// Writes the table to `path` atomically (a temporary file renamed over it).
-    ///
-    /// # Errors
-    /// What is invalid in the table (nothing is written), or [`CompensationError::File`]
-    /// when writing fails; the old file is then kept.
-    pub fn save(&self, path: &Path) -> Result<(), CompensationError> {
-        self.save_to(
-            &crate::atomic_file::OutputFile::check(path, &[])
-                .map_err(|e| files::write_error(path, &e))?,
-        )
-    }
-
-    /// [`UserTable::save`] to an output the caller checked against the output policy
-    /// ([`crate::atomic_file`]).
-    ///
-    /// # Errors
-    /// As [`UserTable::save`].
-    pub fn save_to(&self, out: &crate::atomic_file::OutputFile) -> Result<(), CompensationError> {
-        files::save_to(
-            out,
-            &TableFile {
-                kind: TableFile::KIND.to_string(),
-                version: FORMAT_VERSION,
-                freqs: self.freqs.clone(),
-                entries: self.entries.clone(),
-            },
-        )
-    }
 }
 
-impl TableFile {
-    /// The table, each entry checked as [`UserTable::add`] checks it.
-    fn into_table(self) -> Result<UserTable, CompensationError> {
-        let mut table = UserTable::new(self.freqs)?;
-        for entry in self.entries {
-            if table.get(&entry.name).is_some() {
+/// Checks a frequency grid as [`UserTable::new`] does.
+fn check_grid(freqs: &[Hz]) -> Result<(), CompensationError> {
+    if freqs.is_empty() {
+        return Err(CompensationError::Empty {
+            what: "frequency grid",
+        });
+    }
+    // 0 Hz is allowed: an equalizer's bins start at DC.
+    if let Some(f) = freqs.iter().find(|f| !(f.0.is_finite() && f.0 >= 0.0)) {
+        return Err(CompensationError::InvalidParameter {
+            name: "freqs",
+            value: f.0,
+            expected: "finite, >= 0 Hz",
+        });
+    }
+    if let Some(w) = freqs.windows(2).find(|w| w[1].0 <= w[0].0) {
+        return Err(CompensationError::InvalidParameter {
+            name: "freqs",
+            value: w[1].0,
+            expected: "strictly ascending",
+        });
+    }
+    Ok(())
+}
+
+impl Document for UserTable {
+    const KIND: &'static str = "user-table";
+    const VERSION: u32 = 1;
+    const LEGACY_KIND: Option<&'static str> = Some("user-table");
+    const DESCRIPTION: &'static str = "user table";
+    type Invalid = CompensationError;
+
+    /// The grid as [`UserTable::new`] checks it, each entry as [`UserTable::add`] does, and
+    /// each user's name once.
+    fn validate(&self) -> Result<(), CompensationError> {
+        check_grid(&self.freqs)?;
+        for (i, entry) in self.entries.iter().enumerate() {
+            if self.entries[..i].iter().any(|e| e.name == entry.name) {
                 return Err(CompensationError::InvalidParameter {
                     name: "entries.name",
                     value: f64::NAN,
                     expected: "each user's name once",
                 });
             }
-            table.add(entry)?;
+            self.check(entry)?;
         }
-        Ok(table)
-    }
-}
-
-impl Document for TableFile {
-    const KIND: &'static str = "user-table";
-
-    fn validate(&self) -> Result<(), CompensationError> {
-        let TableFile { freqs, entries, .. } = self;
-        TableFile {
-            kind: String::new(),
-            version: FORMAT_VERSION,
-            freqs: freqs.clone(),
-            entries: entries.clone(),
-        }
-        .into_table()
-        .map(|_| ())
+        Ok(())
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::document::{load, save};
     use crate::units::Band;
     use proptest::prelude::*;
 
@@ -379,25 +319,29 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("users.json");
         let t = two_users();
-        t.save(&path).unwrap();
-        let back = UserTable::load(&path).unwrap();
+        save(&path, &t).unwrap();
+        let back: UserTable = load(&path).unwrap();
         assert_eq!(back, t);
 
         let write = |text: &str| {
             std::fs::write(&path, text).unwrap();
-            UserTable::load(&path)
+            load::<UserTable>(&path)
         };
         let good = std::fs::read_to_string(&path).unwrap();
         let fails_with = |text: &str, needle: &str| {
             let err = write(text).unwrap_err().to_string();
             assert!(err.contains(needle), "{needle:?} not in {err:?}");
         };
+        fails_with(&good.replace("user-table/1", "user-table/2"), "version 2");
+        // An old header without its version.
         fails_with(
-            &good.replace("\"version\": 1", "\"version\": 2"),
-            "version 2",
+            &good.replace(
+                "\"format\": \"underfoot.user-table/1\"",
+                "\"kind\": \"user-table\"",
+            ),
+            "version missing",
         );
-        fails_with(&good.replace("\"version\": 1,", ""), "version missing");
-        fails_with("{ not json", "not JSON");
+        fails_with("{ not json", "not a valid user table file");
         // A curve one entry short.
         let v: serde_json::Value = serde_json::from_str(&good).unwrap();
         let mut v2 = v.clone();
@@ -406,17 +350,23 @@ mod tests {
         // Non-finite values cannot be written as JSON numbers; null is refused.
         let mut v3 = v.clone();
         v3["entries"][1]["weights_db"][4] = serde_json::Value::Null;
-        fails_with(&v3.to_string(), "malformed");
+        fails_with(&v3.to_string(), "not a valid user table file");
         let mut v4 = v.clone();
         v4["entries"][1]["name"] = "a".into();
         fails_with(&v4.to_string(), "name once");
-        assert!(UserTable::load(&dir.path().join("missing.json")).is_err());
+        assert!(load::<UserTable>(&dir.path().join("missing.json")).is_err());
         // An invalid table is not saved, and the file on disk is left alone.
-        t.save(&path).unwrap();
+        save(&path, &t).unwrap();
         let mut broken = t.clone();
         broken.entries[0].weights_db[0] = f64::INFINITY;
-        assert!(broken.save(&path).is_err());
-        assert_eq!(UserTable::load(&path).unwrap(), t);
+        assert!(save(&path, &broken).is_err());
+        assert_eq!(load::<UserTable>(&path).unwrap(), t);
+        // A table as the first version wrote it, with `"kind"` and `"version"`.
+        let old = good.replace(
+            "\"format\": \"underfoot.user-table/1\"",
+            "\"kind\": \"user-table\",\n  \"version\": 1",
+        );
+        assert_eq!(write(&old).unwrap(), t);
     }
 
     fn params() -> impl Strategy<Value = LimbParams> {

@@ -1,11 +1,11 @@
 //! The JSON documents: a material library, and the compensation files (response,
 //! equalizer, limb model, user table).
 
-use std::path::Path;
 
 use super::text;
-use crate::compensation::files::{self, EqualizerFile, LimbFile, ResponseFile};
-use crate::compensation::table::{TableFile, UserEntry, UserTable};
+use crate::compensation::files::{EqualizerFile, LimbFile, ResponseFile};
+use crate::compensation::table::{UserEntry, UserTable};
+use crate::document;
 use crate::material::Library;
 use crate::units::{Band, SampleRate};
 
@@ -37,11 +37,11 @@ pub(super) fn seeds_library_json() -> Vec<Vec<u8>> {
 
 pub(super) fn run_compensation_json(data: &[u8]) {
     let text = text(data);
-    let path = Path::new("fuzz.json");
-    let _ = files::from_json_str::<ResponseFile>(&text, path).map(|r| r.response());
-    let _ = files::from_json_str::<EqualizerFile>(&text, path);
-    let _ = files::from_json_str::<LimbFile>(&text, path);
-    if let Ok(table) = UserTable::from_json_str(&text, path) {
+    let origin = "fuzz.json";
+    let _ = document::from_json::<ResponseFile>(&text, origin).map(|r| r.response());
+    let _ = document::from_json::<EqualizerFile>(&text, origin);
+    let _ = document::from_json::<LimbFile>(&text, origin);
+    if let Ok(table) = document::from_json::<UserTable>(&text, origin) {
         if let Some(first) = table.entries.first() {
             let _ = table.interpolate(&first.params);
         }
@@ -69,9 +69,7 @@ pub(super) fn seeds_compensation_json() -> Vec<Vec<u8>> {
         SpectralWeights::flat(EqualizerConfig::default(), rate).expect("the default config");
     let limb = LimbModel::new(LimbParams::TABLE1_MEAN, 0.5, 1.0).expect("Table 1's mean");
     let grid = band.log_grid(8);
-    let table = TableFile {
-        kind: "user-table".into(),
-        version: files::FORMAT_VERSION,
+    let table = UserTable {
         entries: vec![UserEntry {
             name: "a".into(),
             params: LimbParams::TABLE1_MEAN,
@@ -79,20 +77,27 @@ pub(super) fn seeds_compensation_json() -> Vec<Vec<u8>> {
         }],
         freqs: grid,
     };
-    let json = |v: serde_json::Result<String>| v.expect("serialisable").into_bytes();
+    let json = |v: Result<String, document::DocumentError>| v.expect("valid").into_bytes();
+    let response = ResponseFile::new(&response, rate, band, 3, "seed");
+    // A file of the first version, with `"kind"` and `"version"` instead of the tag, so
+    // that the legacy header is explored too.
+    let legacy = document::to_json(&response, "seed")
+        .expect("valid")
+        .replace(
+            "\"format\": \"underfoot.frequency-response/1\"",
+            "\"kind\": \"frequency-response\",\n  \"version\": 1",
+        );
     vec![
-        json(serde_json::to_string_pretty(&ResponseFile::new(
-            &response, rate, band, 3, "seed",
-        ))),
-        json(serde_json::to_string_pretty(&EqualizerFile::new(
-            weights,
-            Realisation::LowDelay { taps: 64 },
-            vec![],
+        json(document::to_json(&response, "seed")),
+        json(document::to_json(
+            &EqualizerFile::new(weights, Realisation::LowDelay { taps: 64 }, vec![], "seed"),
             "seed",
-        ))),
-        json(serde_json::to_string_pretty(&LimbFile::new(
-            limb, band, 0.3, "seed",
-        ))),
-        json(serde_json::to_string_pretty(&table)),
+        )),
+        json(document::to_json(
+            &LimbFile::new(limb, band, 0.3, "seed"),
+            "seed",
+        )),
+        json(document::to_json(&table, "seed")),
+        legacy.into_bytes(),
     ]
 }

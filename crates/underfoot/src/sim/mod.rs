@@ -3,12 +3,14 @@
 //! Nothing here is a production path. These exist so that tests, examples and the
 //! command line's `--device simulated` can exercise the real code end to end without a
 //! tile, a prosthesis, a sound card or a person: a device with a known response, a user
-//! with a known limb, a board speaking the sensor protocol, an audio loop.
+//! with a known limb, a board speaking the sensor protocol, and the prosthetic interface's board.
 //!
-//! | simulator | what it stands in for |
-//! |---|---|
-//! | [`ReferenceSender`] ([`sensor_board`]) | a sensor board's firmware: force frames of the serial protocol, written to any port |
-//! | [`SimulatedFoot`] ([`prosthetic_board`]) | the prosthetic-skin interface's board: an insole under one walking foot, and servos that follow the host's frames; [`open_interface`] runs it on a pseudo-terminal |
+//! | simulator | file | stands in for |
+//! |---|---|---|
+//! | [`SimulatedTile`], [`TileConfig`], [`TileResonance`] | `tile.rs` | a floor tile on its suspension with an actuator and an accelerometer, for the [compensation](crate::compensation) sweeps |
+//! | [`SimulatedUser`] | `user.rs` | a person standing on that tile: the compensation's limb model ahead of it |
+//! | [`ReferenceSender`] | [`sensor_board`] | a sensor board's firmware: force frames of the serial protocol, written to any port |
+//! | [`SimulatedFoot`] | [`prosthetic_board`] | the prosthetic-skin interface's board: an insole under one walking foot, and servos that follow the host's frames; [`open_interface`] runs it on a pseudo-terminal |
 //!
 //! Layer: at the top of the crate, beside the fuzzing harness; no production module
 //! depends on it.
@@ -17,8 +19,12 @@
 pub mod prosthetic_board;
 #[cfg(feature = "serial")]
 pub mod sensor_board;
+mod tile;
+mod user;
 
 #[cfg(feature = "serial")]
 pub use prosthetic_board::{SimulatedFoot, SimulatedReport, SimulatorHandle, open_interface};
 #[cfg(feature = "serial")]
 pub use sensor_board::ReferenceSender;
+pub use tile::{SimulatedTile, TileConfig, TileResonance};
+pub use user::SimulatedUser;

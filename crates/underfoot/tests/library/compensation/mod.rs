@@ -1,19 +1,24 @@
 //! A compensation session end to end, on the simulated tile and simulated users: equalize
 //! the unloaded tile, fit a user's limb from one loaded sweep, compensate them with the
 //! engine's chain, and start a new user from the table of users without a sweep.
+//!
+//! The submodules hold the stage's own tests that need the simulators, which the unit
+//! tests of `underfoot::compensation` cannot use (`sim` is above it).
+
+mod adapt;
+mod equalizer;
+mod limb;
+mod sweep;
 
 use underfoot::compensation::CompensationError;
 use underfoot::compensation::chain::{Compensation, CompensationChain};
 use underfoot::compensation::equalizer::{
     EqualizerConfig, Realisation, SpectralWeights, equalize, flatness,
 };
-use underfoot::compensation::limb::{
-    DEFAULT_G2, LimbFitConfig, LimbModel, LimbParams, SimulatedUser, fit_limb,
-};
-use underfoot::compensation::sweep::{
-    Device, FrequencyResponse, Sweep, SweepConfig, TileConfig, measure,
-};
+use underfoot::compensation::limb::{DEFAULT_G2, LimbFitConfig, LimbModel, LimbParams, fit_limb};
+use underfoot::compensation::sweep::{Device, FrequencyResponse, Sweep, SweepConfig, measure};
 use underfoot::compensation::table::{UserEntry, UserTable};
+use underfoot::sim::{SimulatedTile, SimulatedUser, TileConfig};
 use underfoot::units::{Band, Decibels, SampleRate};
 
 const RATE: SampleRate = SampleRate(48_000);
@@ -70,7 +75,7 @@ fn curve(device: &SpectralWeights, params: LimbParams) -> Vec<f64> {
 #[test]
 fn a_session_compensates_simulated_users() {
     let sweep = Sweep::new(SweepConfig::new(RATE)).unwrap();
-    let mut unloaded = underfoot::compensation::sweep::SimulatedTile::new(&tile(), RATE).unwrap();
+    let mut unloaded = SimulatedTile::new(&tile(), RATE).unwrap();
     let eq = equalize(
         &mut unloaded,
         &sweep,
