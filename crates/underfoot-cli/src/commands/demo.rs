@@ -21,9 +21,9 @@ use clap::Args;
 use serde::Serialize;
 use underfoot::atomic_file::OutputFile;
 use underfoot::engine::offline::{render, walk_across};
-use underfoot::material::evaluate::segment_lsd;
 use underfoot::force::gait::GaitConfig;
 use underfoot::io::wav::{WavFormat, WavSink};
+use underfoot::material::evaluate::segment_lsd;
 use underfoot::units::Decibels;
 
 use crate::commands::synth::SynthArgs;

@@ -5,12 +5,12 @@
 //!
 //! `UNDERFOOT_TEST_BIN` runs them against another build (e.g. main's, to see them fail).
 
+use crate::common::bin;
 use std::fs;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-use crate::common::{bin};
 
 /// How a run ended: its status code (None if killed at the deadline or by a signal) and
 /// its stderr.

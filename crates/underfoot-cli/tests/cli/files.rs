@@ -9,9 +9,9 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
+use crate::common::{bin, run, s, stderr};
 use underfoot::material::Library;
 use underfoot::material::builtin::builtin;
-use crate::common::{bin, run, s, stderr};
 
 fn assert_refused(o: &Output, words: &str) {
     assert!(!o.status.success(), "succeeded: {}", stderr(o));

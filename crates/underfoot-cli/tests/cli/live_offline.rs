@@ -8,9 +8,9 @@
 //! `A - round(T fs)`. Each step's peak must be within 0.5 dB and its onset within one
 //! sample of that.
 
+use crate::common::run;
 use std::path::Path;
 use std::process::Output;
-use crate::common::{run};
 
 const RATE: f64 = 48_000.0;
 const WALK: &str = "steps=6,channels=1";

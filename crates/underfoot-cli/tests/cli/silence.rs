@@ -2,8 +2,8 @@
 //! ceiling, and with limb compensation (`--user`) the file is silent within 100 ms of the
 //! last force reading.
 
-use std::path::Path;
 use crate::common::{assert_ok, run, s};
+use std::path::Path;
 
 fn codes(path: &Path) -> (hound::WavSpec, Vec<i32>) {
     let mut r = hound::WavReader::open(path).expect("open wav");
