@@ -7,7 +7,7 @@
 //! the audio thread); vibration goes to an audio device, a WAV file or nowhere.
 //!
 //! The input is polled on the session's thread and crosses to the audio thread over the
-//! engine's lock-free queue. `wav:` and `null` outputs are played by a [paced](paced)
+//! engine's lock-free queue. `wav:` and `null` outputs are played by a [paced]
 //! pseudo-device: a thread that renders one buffer per buffer period, as a device would,
 //! so a session can run without a sound card. Like a device's, its frame clock keeps time
 //! with the wall clock: a wake-up that comes late renders the buffers it missed at once

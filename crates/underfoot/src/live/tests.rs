@@ -59,6 +59,15 @@ fn run(config: &SessionConfig, stop: bool) -> Summary {
         .unwrap()
 }
 
+/// The paced output's report: every output of these tests is paced.
+fn paced(report: &OutputReport) -> &PacedReport {
+    match report {
+        OutputReport::Paced(paced) => paced,
+        #[cfg(feature = "audio")]
+        OutputReport::Audio(_) => panic!("{report:?}"),
+    }
+}
+
 #[test]
 fn a_walk_plays_out_into_nothing() {
     let config = SessionConfig::new(walk(1), OutputSpec::Null);
@@ -72,9 +81,7 @@ fn a_walk_plays_out_into_nothing() {
     assert!(summary.lost.is_none() && summary.interface.is_none());
     // The walk (about 0.8 s) plays in real time, then rings out for a second.
     assert!(summary.elapsed.as_secs_f64() > 1.5, "{:?}", summary.elapsed);
-    let OutputReport::Paced(paced) = &summary.output else {
-        panic!("{:?}", summary.output);
-    };
+    let paced = paced(&summary.output);
     assert!(paced.blocks > 0 && paced.wav.is_none(), "{paced:?}");
 }
 
@@ -87,9 +94,7 @@ fn a_walk_is_recorded_into_a_wav_file() {
         ..SessionConfig::new(walk(1), OutputSpec::Wav { path: path.clone() })
     };
     let summary = run(&config, false);
-    let OutputReport::Paced(paced) = &summary.output else {
-        panic!("{:?}", summary.output);
-    };
+    let paced = paced(&summary.output);
     let (written, wav) = paced.wav.as_ref().expect("a WAV file");
     assert_eq!(written, &path);
     assert_eq!(wav.frames, paced.blocks * 64);

@@ -9,13 +9,15 @@
 //!
 //! | file | what it computes |
 //! |---|---|
-//! | `magnitude.rs` | [`SpectrumPlan`]: `\|X_k\|` of a frame, without allocating |
-//! | `smooth.rs` | [`fractional_octave_smooth`]: a magnitude spectrum power-averaged over `1/b`-octave bands |
-//! | `spectrogram.rs` | [`Spectrogram`]: levels of a Hann-windowed short-time transform on a grid of time columns and frequency rows |
+//! | [`magnitude`] | [`SpectrumPlan`]: `\|X_k\|` of a frame, without allocating |
+//! | [`smooth`] | [`fractional_octave_smooth`]: a magnitude spectrum power-averaged over `1/b`-octave bands |
+//! | [`spectrogram`] | [`Spectrogram`]: levels of a Hann-windowed short-time transform on a grid of time columns and frequency rows |
+//!
+//! Each item is also here, at `signal::spectrum::`.
 
-mod magnitude;
-mod smooth;
-mod spectrogram;
+pub mod magnitude;
+pub mod smooth;
+pub mod spectrogram;
 
 pub use magnitude::SpectrumPlan;
 pub use smooth::fractional_octave_smooth;
