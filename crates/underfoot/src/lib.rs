@@ -21,7 +21,9 @@
 //! | 9 | [`synthesis`] | a material's modes at the audio rate; the voice with its per-step perturbation | [iir] |
 //! | 10 | [`engine`] | N channels in real time: lock-free events, no allocation in the callback; offline renders | |
 //! | 11 | [`io`] | inputs (CSV replay, serial, OSC, gait) and outputs (WAV, audio devices), each device behind a feature | |
-//! | 12 | [`export`], [`sim`], [`fuzzing`] | a library as a C99 header for firmware; simulators of devices, users and boards for tests and `--device simulated`; the fuzz targets (hidden) | |
+//! | 12 | [`sim`] | simulators, not production paths: a tile, a user's leg, a sensor board, the prosthetic interface's board, for tests, examples, `--device simulated` and a simulated interface link | |
+//! | 13 | [`live`] | a live session: an input polled into the engine, an output playing it (a sound card, or paced like one into a WAV file or nowhere), its summary | |
+//! | 14 | [`export`], [`fuzzing`] | a library as a C99 header for firmware; the fuzz targets (hidden) | |
 //!
 //! Units are types ([`units`]): a [`SampleRate`](units::SampleRate) is not a
 //! [`Hz`](units::Hz), and neither is a bare `f64`.
@@ -206,6 +208,15 @@ pub mod interface;
 pub mod io;
 #[cfg(feature = "std")]
 pub mod limits;
+// A session opens every kind of input and output, so it needs their features too.
+#[cfg(all(
+    feature = "std",
+    feature = "replay",
+    feature = "serial",
+    feature = "osc",
+    feature = "wav"
+))]
+pub mod live;
 #[cfg(feature = "std")]
 pub mod material;
 #[cfg(feature = "std")]

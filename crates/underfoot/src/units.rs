@@ -158,6 +158,10 @@ impl Band {
     /// 1e-200 Hz filled them with non-finite values).
     pub const MIN_EDGE: f64 = 0.1;
 
+    /// The highest upper edge a band may be given as text: 100 kHz, above every rate the
+    /// pipeline analyses at.
+    pub const MAX_EDGE: f64 = 100_000.0;
+
     /// A band from its edges in hertz. Validity is checked by [`Band::fits`].
     #[must_use]
     pub const fn new(lo: f64, hi: f64) -> Self {
@@ -213,6 +217,89 @@ impl fmt::Display for Band {
     }
 }
 
+/// A band `LO:HI` in Hz (`LO,HI` is accepted too): finite, with
+/// [`Band::MIN_EDGE`] <= LO < HI <= [`Band::MAX_EDGE`]. Whether it fits below a rate's
+/// Nyquist frequency is for the caller, who knows the rate ([`Band::fits`]).
+#[cfg(feature = "std")]
+impl core::str::FromStr for Band {
+    type Err = BandError;
+
+    fn from_str(s: &str) -> Result<Self, BandError> {
+        let syntax = || BandError::Syntax { input: clipped(s) };
+        let (lo, hi) = s
+            .split_once(':')
+            .or_else(|| s.split_once(','))
+            .ok_or_else(syntax)?;
+        let lo: f64 = lo.trim().parse().map_err(|_| syntax())?;
+        let hi: f64 = hi.trim().parse().map_err(|_| syntax())?;
+        let edges = (Self::MIN_EDGE..=Self::MAX_EDGE).contains(&lo)
+            && (Self::MIN_EDGE..=Self::MAX_EDGE).contains(&hi);
+        if !(edges && lo < hi) {
+            return Err(BandError::Range { input: clipped(s) });
+        }
+        Ok(Self::new(lo, hi))
+    }
+}
+
+/// A band given as text that was refused.
+#[cfg(feature = "std")]
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum BandError {
+    /// Not two numbers separated by `:` or `,`.
+    #[error("band {input:?}: {}", self.reason())]
+    Syntax {
+        /// The text (its first 200 bytes, then `…`).
+        input: String,
+    },
+    /// Edges out of order or outside [`Band::MIN_EDGE`]..=[`Band::MAX_EDGE`].
+    #[error("band {input:?}: {}", self.reason())]
+    Range {
+        /// The text (its first 200 bytes, then `…`).
+        input: String,
+    },
+}
+
+#[cfg(feature = "std")]
+impl BandError {
+    /// The text refused.
+    #[must_use]
+    pub fn input(&self) -> &str {
+        match self {
+            Self::Syntax { input } | Self::Range { input } => input,
+        }
+    }
+
+    /// What is wrong with it, and what is expected.
+    #[must_use]
+    pub fn reason(&self) -> String {
+        match self {
+            Self::Syntax { .. } => "expected LO:HI in Hz, e.g. 20:900".to_owned(),
+            Self::Range { .. } => format!(
+                "need {} <= LO < HI <= {} Hz",
+                Band::MIN_EDGE,
+                Band::MAX_EDGE
+            ),
+        }
+    }
+}
+
+/// `s`, cut after 200 bytes (at a character boundary) and marked `…`: an error names
+/// its input, but a fuzzer's megabyte of junk need not be echoed whole.
+#[cfg(feature = "std")]
+pub(crate) fn clipped(s: &str) -> String {
+    let mut input = s.to_owned();
+    if input.len() > 200 {
+        let mut cut = 200;
+        while !input.is_char_boundary(cut) {
+            cut -= 1;
+        }
+        input.truncate(cut);
+        input.push('…');
+    }
+    input
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -234,6 +321,27 @@ mod tests {
         assert!(!Band::new(0.0, 20.0).fits(SampleRate(2000)));
         assert!(!Band::new(1e-200, 900.0).fits(SampleRate(2000)));
         assert!(Band::new(0.1, 900.0).fits(SampleRate(2000)));
+    }
+
+    #[cfg(feature = "std")]
+    #[test]
+    fn bands_parse_from_text_within_the_edges() {
+        assert_eq!("20:900".parse::<Band>(), Ok(Band::new(20.0, 900.0)));
+        assert_eq!(" 40 , 1024 ".parse::<Band>(), Ok(Band::new(40.0, 1024.0)));
+        assert_eq!(
+            "20-900".parse::<Band>().unwrap_err().to_string(),
+            "band \"20-900\": expected LO:HI in Hz, e.g. 20:900"
+        );
+        assert_eq!(
+            "900:20".parse::<Band>().unwrap_err().to_string(),
+            "band \"900:20\": need 0.1 <= LO < HI <= 100000 Hz"
+        );
+        for bad in ["0.05:900", "20:100001", "20:inf", "NaN:900", "20", ":900"] {
+            assert!(bad.parse::<Band>().is_err(), "{bad}");
+        }
+        let long = format!("20:{}", "9".repeat(1000));
+        let e = long.parse::<Band>().unwrap_err();
+        assert!(e.input().len() < 210 && e.input().ends_with('…'), "{e}");
     }
 
     #[test]

@@ -3,8 +3,11 @@
 //! Everything that happens on the audio thread is exercised: all three drives, force
 //! readings, steps, material switches mid-walk (crossfades), a material replaced in the
 //! bank, non-finite input, the limiter working, the watchdog fading out (after the
-//! compensation, in the output stage) and the shut-down fade. The physical aggregate model too: Poisson events, retuned slots,
-//! stolen slots, explicit strikes and resets.
+//! compensation, in the output stage) and the shut-down fade. The physical aggregate model
+//! too: Poisson events, retuned slots, stolen slots, explicit strikes and resets. And the
+//! paced pseudo-device of a live session's `null` output (`live::PacedDevice`), whose
+//! render stands in for a device's callback: the engine inside it and its clock, on time,
+//! late and stalled.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -178,6 +181,61 @@ fn rendering_never_allocates_or_frees() {
             "{t:?}"
         );
     }
+}
+
+#[test]
+fn the_paced_pseudo_device_never_allocates_or_frees() {
+    use std::time::Duration;
+    use underfoot::live::PacedDevice;
+
+    let rate = SampleRate(48_000);
+    let step = nominal_step(70.0, 1.8, rate.hz());
+    let bank = MaterialBank::prepare(
+        builtin(),
+        rate,
+        &VoiceConfig::default(),
+        &step,
+        Newtons::weight_of(70.0),
+    )
+    .unwrap();
+    let config = EngineConfig {
+        channels: 2,
+        ..EngineConfig::default()
+    };
+    let (mut ctl, eng) = engine::build(&config, bank, &[0, 1]).unwrap();
+    let block = 256;
+    let period = Duration::from_secs_f64(block as f64 / rate.hz());
+    let mut device = PacedDevice::new(eng, None, 2, rate, block);
+    for n in 0..300u64 {
+        // The control side, outside the watched region: readings at about 500 Hz.
+        let t = (n * 256) as f32 / 48_000.0;
+        let f = (700.0 * (t * std::f32::consts::TAU * 0.9).sin()).max(0.0);
+        for channel in 0..2u16 {
+            let reading = SensorReading::new(&[0.5 * f, 0.5 * f]).unwrap();
+            ctl.send(TimedEvent::now(Event::Force { channel, reading }))
+                .unwrap();
+        }
+        if n == 290 {
+            ctl.stop().unwrap();
+        }
+        let mut wait = Duration::ZERO;
+        let allocated = allocations_in(|| wait = device.render().unwrap());
+        assert_eq!(allocated, 0, "buffer {n} allocated {allocated} times");
+        // Fall behind by two buffers once, then stall for over a second: the clock
+        // catches up, then starts afresh.
+        if n == 100 {
+            std::thread::sleep(wait + 2 * period);
+        } else if n == 200 {
+            std::thread::sleep(wait + Duration::from_millis(1100));
+        }
+        ctl.collect();
+    }
+    let report = device.finish().unwrap();
+    assert_eq!(report.blocks, 300);
+    // Two late wake-ups made here; a loaded machine may add its own.
+    assert!(report.late >= 2, "{report:?}");
+    let t = ctl.telemetry();
+    assert!(t.strikes > 0 && t.stopped, "{t:?}");
 }
 
 #[test]

@@ -7,8 +7,15 @@
 mod common;
 
 mod bounds;
-mod commands;
+mod calibrate_cmd;
+mod compare_cmd;
+mod demo_cmd;
+mod export_cmd;
 mod files;
+mod fit_cmd;
+mod library_cmd;
 mod live_offline;
+mod render_cmd;
+mod run_cmd;
 mod serial_link;
 mod silence;

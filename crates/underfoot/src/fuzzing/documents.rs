@@ -1,7 +1,6 @@
 //! The JSON documents: a material library, and the compensation files (response,
 //! equalizer, limb model, user table).
 
-
 use super::text;
 use crate::compensation::files::{EqualizerFile, LimbFile, ResponseFile};
 use crate::compensation::table::{UserEntry, UserTable};

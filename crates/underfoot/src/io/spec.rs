@@ -20,7 +20,7 @@ use std::path::PathBuf;
 use std::str::FromStr;
 
 use crate::force::gait::GaitConfig;
-use crate::units::{Band, SampleRate, Seconds};
+use crate::units::{Band, BandError, SampleRate, Seconds, clipped};
 
 /// Slowest replay: a thousandth of real time.
 pub const MIN_SPEED: f64 = 1e-3;
@@ -28,8 +28,8 @@ pub const MIN_SPEED: f64 = 1e-3;
 pub const MAX_SPEED: f64 = 1e3;
 /// Lowest band edge: [`Band::MIN_EDGE`], 0.1 Hz.
 pub const MIN_BAND_EDGE: f64 = Band::MIN_EDGE;
-/// Highest band edge: 100 kHz, above every rate the pipeline analyses at.
-pub const MAX_BAND_EDGE: f64 = 100_000.0;
+/// Highest band edge: [`Band::MAX_EDGE`], 100 kHz.
+pub const MAX_BAND_EDGE: f64 = Band::MAX_EDGE;
 /// Longest live session: 30 days.
 pub const MAX_SESSION: Seconds = Seconds(30.0 * 86_400.0);
 
@@ -50,20 +50,16 @@ pub enum SpecError {
 }
 
 fn invalid(what: &'static str, input: &str, reason: impl Into<String>) -> SpecError {
-    // An error names the input, but a fuzzer's megabyte of junk need not be echoed whole.
-    let mut input = input.to_owned();
-    if input.len() > 200 {
-        let mut cut = 200;
-        while !input.is_char_boundary(cut) {
-            cut -= 1;
-        }
-        input.truncate(cut);
-        input.push('…');
-    }
     SpecError::Invalid {
         what,
-        input,
+        input: clipped(input),
         reason: reason.into(),
+    }
+}
+
+impl From<BandError> for SpecError {
+    fn from(e: BandError) -> Self {
+        invalid("band", e.input(), e.reason())
     }
 }
 
@@ -225,38 +221,28 @@ impl FromStr for OutputSpec {
     }
 }
 
-/// A band `LO:HI` in Hz (`LO,HI` is accepted too): finite, with
-/// [`MIN_BAND_EDGE`] <= LO < HI <= [`MAX_BAND_EDGE`]. Whether it fits below a rate's
-/// Nyquist frequency is for the caller, who knows the rate ([`Band::fits`]).
+/// The spec as it parses: `audio`, `audio:DEVICE`, `wav:FILE` or `null`.
+impl std::fmt::Display for OutputSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Audio { device: None } => f.write_str("audio"),
+            Self::Audio {
+                device: Some(device),
+            } => write!(f, "audio:{device}"),
+            Self::Wav { path } => write!(f, "wav:{}", path.display()),
+            Self::Null => f.write_str("null"),
+        }
+    }
+}
+
+/// A band `LO:HI` in Hz (`LO,HI` is accepted too), as [`Band`]'s `FromStr` parses it:
+/// finite, with [`MIN_BAND_EDGE`] <= LO < HI <= [`MAX_BAND_EDGE`]. Whether it fits below
+/// a rate's Nyquist frequency is for the caller, who knows the rate ([`Band::fits`]).
 ///
 /// # Errors
 /// [`SpecError::Invalid`] naming the text.
 pub fn parse_band(s: &str) -> Result<Band, SpecError> {
-    const WHAT: &str = "band";
-    let bad = || invalid(WHAT, s, "expected LO:HI in Hz, e.g. 20:900");
-    let (lo, hi) = s
-        .split_once(':')
-        .or_else(|| s.split_once(','))
-        .ok_or_else(bad)?;
-    let lo: f64 = lo.trim().parse().map_err(|_| bad())?;
-    let hi: f64 = hi.trim().parse().map_err(|_| bad())?;
-    let edges = (MIN_BAND_EDGE..=MAX_BAND_EDGE).contains(&lo)
-        && (MIN_BAND_EDGE..=MAX_BAND_EDGE).contains(&hi);
-    if !(edges && lo < hi) {
-        return Err(invalid(
-            WHAT,
-            s,
-            format!("need {MIN_BAND_EDGE} <= LO < HI <= {MAX_BAND_EDGE} Hz"),
-        ));
-    }
-    Ok(Band::new(lo, hi))
-}
-
-impl FromStr for Band {
-    type Err = SpecError;
-    fn from_str(s: &str) -> Result<Self, SpecError> {
-        parse_band(s)
-    }
+    Ok(s.parse::<Band>()?)
 }
 
 /// A duration in seconds, finite and within `lo..=hi`; `what` names it in errors.
@@ -394,6 +380,13 @@ mod tests {
         assert_eq!(OutputSpec::parse("null").unwrap(), OutputSpec::Null);
         for bad in ["", "wav", "wav:", "null:x", "audio:", "file:x", "wav:a\0b"] {
             assert!(OutputSpec::parse(bad).is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn outputs_display_as_they_parse() {
+        for s in ["audio", "audio:hw:1", "wav:o.wav", "wav:a:b.wav", "null"] {
+            assert_eq!(OutputSpec::parse(s).unwrap().to_string(), s);
         }
     }
 

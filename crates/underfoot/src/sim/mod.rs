@@ -12,8 +12,9 @@
 //! | [`ReferenceSender`] | [`sensor_board`] | a sensor board's firmware: force frames of the serial protocol, written to any port |
 //! | [`SimulatedFoot`] | [`prosthetic_board`] | the prosthetic-skin interface's board: an insole under one walking foot, and servos that follow the host's frames; [`open_interface`] runs it on a pseudo-terminal |
 //!
-//! Layer: at the top of the crate, beside the fuzzing harness; no production module
-//! depends on it.
+//! Layer: above every stage it stands in for (it drives the real compensation, serial
+//! and interface code); only [`live`](crate::live), the composition of a running
+//! session, may use it, to run an interface whose configuration names a simulated link.
 
 #[cfg(feature = "serial")]
 pub mod prosthetic_board;

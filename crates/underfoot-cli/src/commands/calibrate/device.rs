@@ -1,0 +1,207 @@
+//! Where sweeps are played and recorded: the simulated tile (with a simulated user on it,
+//! `--load`), a replayed measurement, or a sound card (`--device audio`, with the
+//! `audio` feature).
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use clap::Args;
+use underfoot::compensation::files::ResponseFile;
+use underfoot::compensation::sweep::{Device, MeasuredDevice};
+use underfoot::document;
+use underfoot::io::spec::SpecError;
+use underfoot::sim::{SimulatedTile, SimulatedUser, TileConfig};
+use underfoot::units::{Decibels, SampleRate};
+
+use super::sweep::SweepSettings;
+
+/// Where sweeps are played and recorded.
+#[derive(Debug, Clone)]
+pub enum DeviceArg {
+    /// The simulated tile (resonances at 180, 420 and 760 Hz, a 20 Hz suspension notch,
+    /// a 50-900 Hz actuator, accelerometer noise).
+    Simulated,
+    /// A replay of a measured response (a `calibrate sweep` file).
+    Measured(PathBuf),
+    /// A sound card: the actuator on an output, the accelerometer on an input (`audio`,
+    /// or `audio:DEVICE` for both); `--output-device` and `--input-device` override.
+    Audio {
+        output: Option<String>,
+        input: Option<String>,
+    },
+}
+
+pub(super) fn parse_device(s: &str) -> Result<DeviceArg, SpecError> {
+    match s {
+        "simulated" => Ok(DeviceArg::Simulated),
+        "audio" => Ok(DeviceArg::Audio {
+            output: None,
+            input: None,
+        }),
+        "" => Err(SpecError::Invalid {
+            what: "--device",
+            input: String::new(),
+            reason: "expected `simulated`, `audio[:DEVICE]` or a measured-response file".into(),
+        }),
+        _ => match s.strip_prefix("audio:") {
+            Some(device) if !device.is_empty() => Ok(DeviceArg::Audio {
+                output: Some(device.to_string()),
+                input: Some(device.to_string()),
+            }),
+            _ => Ok(DeviceArg::Measured(PathBuf::from(s))),
+        },
+    }
+}
+
+/// The sound card's settings for `--device audio`.
+#[derive(Debug, Clone, Args)]
+pub struct AudioDeviceArgs {
+    /// `--device audio`: the output that drives the actuator (an id such as `hw:1`, a
+    /// description or part of either; `run --list-devices` lists them); the host's
+    /// default without it.
+    #[arg(long = "output-device", value_name = "DEVICE")]
+    pub output_device: Option<String>,
+    /// `--device audio`: the input the accelerometer is on; the host's default without it.
+    #[arg(long = "input-device", value_name = "DEVICE")]
+    pub input_device: Option<String>,
+    /// `--device audio`: audio host: default, alsa or jack.
+    #[arg(long, default_value = "default", value_name = "HOST")]
+    pub host: String,
+    /// `--device audio`: the output channel that drives the actuator, from 0.
+    #[arg(long = "out-channel", default_value_t = 0, value_name = "N")]
+    pub out_channel: u16,
+    /// `--device audio`: the input channel the accelerometer is on, from 0.
+    #[arg(long = "in-channel", default_value_t = 0, value_name = "N")]
+    pub in_channel: u16,
+    /// `--device audio`: channels of the output stream (the others play silence).
+    #[arg(long = "output-channels", default_value_t = 2, value_name = "N")]
+    pub output_channels: u16,
+    /// `--device audio`: channels of the input stream (only `--in-channel` is recorded).
+    #[arg(long = "input-channels", default_value_t = 2, value_name = "N")]
+    pub input_channels: u16,
+    /// `--device audio`: frames per device buffer; the host's default without it. A
+    /// measurement needs no low latency: large buffers (1024) keep it clear of xruns.
+    #[arg(long, value_name = "FRAMES")]
+    pub buffer: Option<u32>,
+}
+
+impl SweepSettings {
+    pub(super) fn device(&self, device: &DeviceArg) -> anyhow::Result<(Box<dyn Device>, String)> {
+        let rate = SampleRate(self.rate);
+        match device {
+            DeviceArg::Simulated => {
+                anyhow::ensure!(
+                    self.noise_db.is_finite() && self.noise_db <= 0.0,
+                    "--noise-db {}: need a finite level at most 0 dB",
+                    self.noise_db
+                );
+                let cfg = TileConfig {
+                    noise: Some(Decibels(self.noise_db)),
+                    seed: self.seed,
+                    ..TileConfig::default()
+                };
+                let noise = format!("{} dB sensor noise", self.noise_db);
+                match &self.load {
+                    None => {
+                        let tile = SimulatedTile::new(&cfg, rate).context("the simulated tile")?;
+                        Ok((Box::new(tile), format!("simulated tile, {noise}")))
+                    }
+                    Some(user) => {
+                        let (model, who) = user.model()?;
+                        let device =
+                            SimulatedUser::new(&cfg, model, rate).context("the simulated user")?;
+                        Ok((
+                            Box::new(device),
+                            format!("simulated tile loaded by {who}, {noise}"),
+                        ))
+                    }
+                }
+            }
+            DeviceArg::Measured(path) => {
+                anyhow::ensure!(
+                    self.load.is_none(),
+                    "--load simulates a user on the simulated tile; a replayed measurement already holds its load"
+                );
+                let file: ResponseFile = document::load(path)?;
+                anyhow::ensure!(
+                    file.rate == rate,
+                    "{} was measured at {} Hz; use --rate {}",
+                    path.display(),
+                    file.rate.0,
+                    file.rate.0
+                );
+                let replay = MeasuredDevice::new(&file.response(), rate)
+                    .with_context(|| format!("replaying {}", path.display()))?;
+                Ok((
+                    Box::new(replay),
+                    format!("replay of {} ({})", path.display(), file.description),
+                ))
+            }
+            DeviceArg::Audio { output, input } => {
+                anyhow::ensure!(
+                    self.load.is_none(),
+                    "--load simulates a user on the simulated tile; on a sound card, stand on it"
+                );
+                let output = self.audio.output_device.clone().or_else(|| output.clone());
+                let input = self.audio.input_device.clone().or_else(|| input.clone());
+                audio_loop(&self.audio, output, input, rate)
+            }
+        }
+    }
+}
+
+/// The sound card as a sweep device.
+#[cfg(feature = "audio")]
+fn audio_loop(
+    args: &AudioDeviceArgs,
+    output: Option<String>,
+    input: Option<String>,
+    rate: SampleRate,
+) -> anyhow::Result<(Box<dyn Device>, String)> {
+    use underfoot::io::audio::{AudioConfig, AudioLoop, LoopConfig};
+    let host = args
+        .host
+        .parse()
+        .map_err(|e| anyhow::anyhow!("--host {:?}: {e}", args.host))?;
+    let stream = |device: Option<String>, channels: u16| AudioConfig {
+        host,
+        device,
+        channels,
+        rate,
+        buffer_frames: args.buffer,
+    };
+    let name = |d: &Option<String>| d.clone().unwrap_or_else(|| "default".into());
+    let description = format!(
+        "sound card ({host} host): output {} channel {}, input {} channel {}",
+        name(&output),
+        args.out_channel,
+        name(&input),
+        args.in_channel
+    );
+    let cfg = LoopConfig {
+        out_channel: args.out_channel,
+        in_channel: args.in_channel,
+        ..LoopConfig::new(
+            stream(output, args.output_channels),
+            stream(input, args.input_channels),
+        )
+    };
+    let device = AudioLoop::new(cfg).context("the sound card")?;
+    Ok((Box::new(device), description))
+}
+
+#[cfg(not(feature = "audio"))]
+fn audio_loop(
+    args: &AudioDeviceArgs,
+    output: Option<String>,
+    input: Option<String>,
+    _rate: SampleRate,
+) -> anyhow::Result<(Box<dyn Device>, String)> {
+    anyhow::bail!(
+        "--device audio (output {:?}, input {:?}, host {}): this build has no audio support; \
+         rebuild with `--features audio` (needs the libasound2-dev package) or `--features jack`",
+        output.as_deref().unwrap_or("default"),
+        input.as_deref().unwrap_or("default"),
+        args.host
+    )
+}

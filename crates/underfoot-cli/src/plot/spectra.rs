@@ -1,0 +1,283 @@
+//! Spectra: a material's measured response against its model's, in dB on a
+//! log-frequency axis, one panel per material (two columns when there is more than one),
+//! drawn from each model's fit record; `compare` adds the physical model.
+
+use std::path::Path;
+
+use anyhow::bail;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+use underfoot::material::FitRecord;
+
+use super::axes::magnitude_chart;
+use super::font::FAMILY;
+use super::{FLOOR_DB, Figure, Format, Omitted, PANEL_SIZE, TITLE_HEIGHT, draw, ink, write_figure};
+
+/// One panel: a title and the fit record to draw.
+pub struct Panel<'a> {
+    pub title: String,
+    pub fit: &'a FitRecord,
+    /// A second model on the same grid (the physical model of `compare`), drawn in blue.
+    pub physical: Option<&'a [f64]>,
+}
+
+/// Draws `panels` into `path` (two columns when there is more than one panel).
+pub fn draw_spectra(path: &Path, panels: &[Panel<'_>]) -> anyhow::Result<Omitted> {
+    draw(path, |format, show_text| {
+        render(path, format, panels, show_text)
+    })
+}
+
+/// Draws without looking for a font: with `show_text` false, every text is transparent,
+/// which the bitmap backend skips before it would need a font.
+fn render(
+    path: &Path,
+    format: Format,
+    panels: &[Panel<'_>],
+    show_text: bool,
+) -> anyhow::Result<()> {
+    if panels.is_empty() {
+        bail!("nothing to plot in {}", path.display());
+    }
+    for p in panels {
+        if p.fit.grid_hz.len() < 2 {
+            bail!(
+                "{}: the fit record has fewer than 2 points; nothing to plot",
+                p.title
+            );
+        }
+    }
+    let cols = if panels.len() == 1 { 1 } else { 2 };
+    let rows = panels.len().div_ceil(cols);
+    let size = (PANEL_SIZE.0 * cols as u32, PANEL_SIZE.1 * rows as u32);
+    let figure = Spectra {
+        panels,
+        grid: (rows, cols),
+        show_text,
+    };
+    write_figure(path, format, size, &figure)
+}
+
+/// The panels on a grid of `(rows, columns)`.
+struct Spectra<'a> {
+    panels: &'a [Panel<'a>],
+    grid: (usize, usize),
+    show_text: bool,
+}
+
+impl Figure for Spectra<'_> {
+    fn draw_on<DB: DrawingBackend>(
+        &self,
+        root: &DrawingArea<DB, Shift>,
+    ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+        root.fill(&WHITE)?;
+        for (area, panel) in root.split_evenly(self.grid).iter().zip(self.panels) {
+            draw_panel(area, panel, self.show_text)?;
+        }
+        Ok(())
+    }
+}
+
+fn db(m: f64) -> f64 {
+    20.0 * m.log10()
+}
+
+fn draw_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    panel: &Panel<'_>,
+    show_text: bool,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let fit = panel.fit;
+    let ink = ink(show_text);
+    let text = |size: f64| (FAMILY, size).into_font().color(&ink);
+
+    let all_db = fit
+        .measured
+        .iter()
+        .chain(&fit.model)
+        .chain(panel.physical.unwrap_or_default())
+        .map(|&m| db(m))
+        .filter(|v| v.is_finite());
+    let top = all_db.clone().fold(f64::NEG_INFINITY, f64::max);
+    let (top, floor) = if top.is_finite() {
+        let low = all_db.fold(f64::INFINITY, f64::min).max(top - FLOOR_DB);
+        (top + 3.0, low - 3.0)
+    } else {
+        // All magnitudes are zero: an empty frame is the honest picture.
+        (0.0, -FLOOR_DB)
+    };
+    let series = |values: &[f64]| -> Vec<(f64, f64)> {
+        fit.grid_hz
+            .iter()
+            .zip(values)
+            .map(|(&f, &m)| (f, db(m).max(floor)))
+            .collect()
+    };
+    let (lo, hi) = (fit.grid_hz[0], fit.grid_hz[fit.grid_hz.len() - 1]);
+
+    // Title and legend share the top row and are placed by hand: plotters' caption and
+    // legend measure text, which needs a font even for SVG.
+    let (w, _) = area.dim_in_pixel();
+    let row_y = (TITLE_HEIGHT / 2) as i32;
+    let measured_style = BLACK.stroke_width(2);
+    let model_style = RED.stroke_width(2);
+    let physical_style = BLUE.stroke_width(2);
+    if show_text {
+        area.draw(&Text::new(
+            panel.title.clone(),
+            (12, row_y),
+            text(17.0).pos(Pos::new(HPos::Left, VPos::Center)),
+        ))?;
+        let legend: &[(&str, ShapeStyle)] = if panel.physical.is_some() {
+            &[
+                ("measured", measured_style),
+                ("IIR", model_style),
+                ("physical", physical_style),
+            ]
+        } else {
+            &[("measured", measured_style), ("model", model_style)]
+        };
+        let first = w as i32 - 105 * legend.len() as i32;
+        for (i, &(label, style)) in legend.iter().enumerate() {
+            let x = first + 105 * i as i32;
+            area.draw(&PathElement::new(vec![(x, row_y), (x + 24, row_y)], style))?;
+            area.draw(&Text::new(
+                label,
+                (x + 30, row_y),
+                text(14.0).pos(Pos::new(HPos::Left, VPos::Center)),
+            ))?;
+        }
+    }
+
+    let mut chart = magnitude_chart(area, (lo, hi), (floor, top), ink)?;
+    chart.draw_series(LineSeries::new(series(&fit.measured), measured_style))?;
+    chart.draw_series(LineSeries::new(series(&fit.model), model_style))?;
+    if let Some(physical) = panel.physical {
+        chart.draw_series(LineSeries::new(series(physical), physical_style))?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plot::font::font;
+
+    fn record() -> FitRecord {
+        let grid: Vec<f64> = (0..32)
+            .map(|i| 20.0 * 45f64.powf(f64::from(i) / 31.0))
+            .collect();
+        let measured: Vec<f64> = grid
+            .iter()
+            .map(|f| 1.0 / (1.0 + (f / 200.0).powi(2)))
+            .collect();
+        let mut model = measured.clone();
+        model[3] = 0.0; // a zero magnitude must not break the dB scale
+        FitRecord {
+            grid_hz: grid,
+            measured,
+            model,
+            nrmse: 0.01,
+            lsd_db: 0.2,
+            method: "test".into(),
+            poor_fit: false,
+            strikes: 4,
+            fit_seconds: 1.0,
+            longest_decay: underfoot::units::Seconds(0.5),
+            worst: None,
+        }
+    }
+
+    #[test]
+    fn svg_has_text_without_a_font() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("s.svg");
+        let fit = record();
+        let panels = [
+            Panel {
+                title: "gravel".into(),
+                fit: &fit,
+                physical: None,
+            },
+            Panel {
+                title: "snow".into(),
+                fit: &fit,
+                physical: None,
+            },
+        ];
+        // No font was registered under this family by this path: SVG must not need one.
+        render(&path, Format::Svg, &panels, true).expect("svg");
+        let svg = std::fs::read_to_string(&path).expect("read");
+        assert!(
+            svg.contains(">\ngravel\n</text>") && svg.contains(">\nsnow\n</text>"),
+            "titles"
+        );
+        assert!(
+            svg.contains("frequency (Hz)") && svg.contains("<polyline"),
+            "axes and curves"
+        );
+    }
+
+    #[test]
+    fn png_without_text_needs_no_font() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("s.png");
+        let fit = record();
+        render(
+            &path,
+            Format::Png,
+            &[Panel {
+                title: "x".into(),
+                fit: &fit,
+                physical: None,
+            }],
+            false,
+        )
+        .expect("png");
+        let bytes = std::fs::read(&path).expect("read");
+        assert!(bytes.starts_with(b"\x89PNG\r\n\x1a\n"));
+    }
+
+    #[test]
+    fn png_with_text_when_a_font_is_found() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("t.png");
+        let fit = record();
+        let omitted = draw_spectra(
+            &path,
+            &[Panel {
+                title: "x".into(),
+                fit: &fit,
+                physical: None,
+            }],
+        )
+        .expect("png");
+        let expected = if font().expect("font lookup").is_some() {
+            Omitted::Nothing
+        } else {
+            Omitted::Text
+        };
+        assert_eq!(omitted, expected);
+        assert!(std::fs::read(&path).expect("read").starts_with(b"\x89PNG"));
+    }
+
+    #[test]
+    fn short_fit_record_is_an_error() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let mut fit = record();
+        fit.grid_hz.truncate(1);
+        let e = render(
+            &dir.path().join("x.svg"),
+            Format::Svg,
+            &[Panel {
+                title: "m".into(),
+                fit: &fit,
+                physical: None,
+            }],
+            true,
+        )
+        .expect_err("one point");
+        assert!(e.to_string().contains("fewer than 2 points"));
+    }
+}

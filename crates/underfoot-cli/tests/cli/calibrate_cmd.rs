@@ -1,0 +1,218 @@
+//! `underfoot calibrate` (and `eq-table`): the compensation session on the simulated tile, a sound card without the `audio` feature, the force sensors.
+
+use std::fs;
+
+use crate::common::{assert_error, assert_ok, run, s, stdout};
+
+/// The README's compensation session on the simulated tile: measure, equalize, fit a
+/// user, tabulate users, and render through the compensation.
+#[test]
+fn a_compensation_session_on_the_simulated_tile() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |name: &str| dir.path().join(name);
+    let unloaded = p("tile-unloaded.json");
+    let o = run(&["calibrate", "sweep", "--out", s(&unloaded)]);
+    assert_ok(&o);
+    assert!(stdout(&o).contains("2.83 dB from flat"), "{}", stdout(&o));
+
+    let eq = p("tile-eq.json");
+    let plot = p("eq.svg");
+    let o = run(&[
+        "calibrate",
+        "equalize",
+        "--device",
+        s(&unloaded),
+        "--passes",
+        "3",
+        "--out",
+        s(&eq),
+        "--plot",
+        s(&plot),
+    ]);
+    assert_ok(&o);
+    // Pass 3's RMS deviation, from the table: below the paper's 0.28 dB.
+    let last = stdout(&o)
+        .lines()
+        .find(|l| l.trim_start().starts_with("3 "))
+        .map(|l| l.split_whitespace().nth(1).unwrap().parse::<f64>().unwrap())
+        .expect("a row for pass 3");
+    assert!(last < 0.28, "{}", stdout(&o));
+    assert!(fs::metadata(&plot).unwrap().len() > 1000);
+
+    // Two users stand on the tile; their limb models go into a table.
+    let table = p("users.json");
+    for (name, load) in [("anna", "table1"), ("bob", "0.0055,2.5e6,1200")] {
+        let sweep = p(&format!("{name}-sweep.json"));
+        assert_ok(&run(&[
+            "calibrate",
+            "sweep",
+            "--load",
+            load,
+            "--eq",
+            s(&eq),
+            "--out",
+            s(&sweep),
+        ]));
+        let limb = p(&format!("{name}.json"));
+        let o = run(&[
+            "calibrate",
+            "limb",
+            "--sweeps",
+            s(&sweep),
+            "--out",
+            s(&limb),
+        ]);
+        assert_ok(&o);
+        assert!(stdout(&o).contains("b3/k3"), "{}", stdout(&o));
+        assert_ok(&run(&[
+            "eq-table",
+            "add",
+            "--user",
+            s(&limb),
+            "--table",
+            s(&table),
+            "--eq",
+            s(&eq),
+        ]));
+    }
+    let o = run(&["eq-table", "show", "--table", s(&table)]);
+    assert_ok(&o);
+    assert!(stdout(&o).contains("anna") && stdout(&o).contains("bob"));
+
+    // Rendering through the equalizer and Anna's limb filter, and through the table.
+    for extra in [
+        vec!["--user", s(&p("anna.json"))],
+        vec!["--eq-table", s(&table), "--user", "0.0045,4e6,1800"],
+    ] {
+        let wav = p("walk.wav");
+        let mut args = vec![
+            "render",
+            "--material",
+            "snow",
+            "--gait",
+            "steps=2",
+            "--out",
+            s(&wav),
+            "--eq",
+            s(&eq),
+        ];
+        args.extend(extra);
+        assert_ok(&run(&args));
+        assert!(fs::metadata(&wav).unwrap().len() > 1000);
+    }
+
+    // Another command's file, a missing file and a newer version are clean errors, and a
+    // failed run leaves the files alone.
+    let before = fs::read(&eq).unwrap();
+    let err = assert_error(&run(&[
+        "calibrate",
+        "equalize",
+        "--device",
+        s(&eq),
+        "--out",
+        s(&eq),
+    ]));
+    assert!(err.contains("format \"underfoot.equalizer/1\""), "{err}");
+    assert_eq!(fs::read(&eq).unwrap(), before);
+    let newer = p("newer.json");
+    fs::write(
+        &newer,
+        fs::read_to_string(&unloaded)
+            .unwrap()
+            .replace("frequency-response/1", "frequency-response/2"),
+    )
+    .unwrap();
+    let err = assert_error(&run(&[
+        "calibrate",
+        "limb",
+        "--sweeps",
+        s(&newer),
+        "--out",
+        s(&p("x.json")),
+    ]));
+    assert!(err.contains("version 2"), "{err}");
+    assert_error(&run(&[
+        "render",
+        "--material",
+        "snow",
+        "--gait",
+        "steps=2",
+        "--out",
+        s(&p("w.wav")),
+        "--eq",
+        s(&p("missing.json")),
+    ]));
+}
+
+/// `--device audio` in a build without the `audio` feature says so, rather than treating
+/// `audio` as a file name.
+#[cfg(not(feature = "audio"))]
+#[test]
+fn calibrate_on_a_sound_card_needs_the_audio_feature() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("tile.json");
+    let o = run(&[
+        "calibrate",
+        "sweep",
+        "--device",
+        "audio",
+        "--output-device",
+        "hw:1",
+        "--out",
+        s(&out),
+    ]);
+    let message = assert_error(&o);
+    assert!(message.contains("no audio support"), "{message}");
+    assert!(message.contains("hw:1"), "{message}");
+    assert!(!out.exists());
+}
+
+#[test]
+fn calibrate_sensors_fits_saves_and_reports_residuals() {
+    let dir = tempfile::tempdir().unwrap();
+    let readings = dir.path().join("scale.csv");
+    let mut csv = String::from("# lab scale session\nsensor,raw,load_n\n");
+    for i in 0..30 {
+        let load = 30.0 * f64::from(i);
+        for (name, r0) in [("heel", 200.0), ("toe", 150.0)] {
+            let raw = r0 + (load / 0.0119_f64).powf(1.0 / 1.4);
+            csv.push_str(&format!("{name},{raw:.1},{load}\n"));
+        }
+    }
+    fs::write(&readings, csv).unwrap();
+    let out = dir.path().join("sensors.json");
+    for kind in ["power", "piecewise"] {
+        let o = run(&[
+            "calibrate",
+            "sensors",
+            "--readings",
+            s(&readings),
+            "--out",
+            s(&out),
+            "--kind",
+            kind,
+        ]);
+        assert_ok(&o);
+        let text = stdout(&o);
+        assert!(
+            text.contains("heel") && text.contains("toe") && text.contains("rms N"),
+            "{text}"
+        );
+        let cal = underfoot::force::calibration::SensorCalibration::load(&out).unwrap();
+        assert_eq!(cal.sensors.len(), 2);
+    }
+
+    fs::write(&readings, "sensor,raw,load_n\nheel,200,0\nheel,oops,10\n").unwrap();
+    let message = assert_error(&run(&[
+        "calibrate",
+        "sensors",
+        "--readings",
+        s(&readings),
+        "--out",
+        s(&out),
+    ]));
+    assert!(
+        message.contains("scale.csv") && message.contains("line 3"),
+        "{message}"
+    );
+}

@@ -1,0 +1,117 @@
+//! `underfoot render`: force (a generated walk, a CSV track) to a WAV file of vibration.
+
+use std::fs;
+
+use crate::common::{assert_error, assert_ok, read_wav, run, s, stdout};
+
+#[test]
+fn render_of_a_generated_walk_is_reproducible_and_carries_the_force() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let render = |out: &str, seed: &str| {
+        run(&[
+            "render",
+            "--material",
+            "snow",
+            "--gait",
+            "steps=3,channels=1",
+            "--out",
+            s(&dir.path().join(out)),
+            "--seed",
+            seed,
+            "--force-out",
+            s(&dir.path().join(format!("force-{out}"))),
+            "--gain-db",
+            "-20",
+            "--save-force",
+            s(&dir.path().join("steps.csv")),
+        ])
+    };
+    assert_ok(&render("a.wav", "1"));
+    assert_ok(&render("b.wav", "1"));
+    let o = render("c.wav", "2");
+    assert_ok(&o);
+    assert!(stdout(&o).contains("3 strike(s)"), "{}", stdout(&o));
+    let (spec, a) = read_wav(&dir.path().join("a.wav"));
+    assert_eq!(spec.channels, 1, "the drive only: force has its own file");
+    let (_, force) = read_wav(&dir.path().join("force-a.wav"));
+    let (_, b) = read_wav(&dir.path().join("b.wav"));
+    let (_, c) = read_wav(&dir.path().join("c.wav"));
+    assert_eq!(a, b, "same seed, same output");
+    assert_ne!(a, c, "another seed perturbs the steps differently");
+    // The force channel peaks near 1.15 body weights of 70 kg, in kN.
+    let force_peak = force.iter().fold(0.0f32, |m, v| m.max(*v));
+    assert!((0.7..0.95).contains(&force_peak), "{force_peak}");
+    // The saved track renders to the same vibration.
+    let o = run(&[
+        "render",
+        "--material",
+        "snow",
+        "--force",
+        s(&dir.path().join("steps.csv")),
+        "--out",
+        s(&dir.path().join("d.wav")),
+        "--seed",
+        "1",
+        "--gain-db",
+        "-20",
+    ]);
+    assert_ok(&o);
+    let (_, d) = read_wav(&dir.path().join("d.wav"));
+    let vib = a;
+    assert_eq!(vib.len(), d.len());
+    let diff = vib
+        .iter()
+        .zip(&d)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max);
+    assert!(diff < 1e-6, "{diff}");
+}
+
+#[test]
+fn render_of_a_bad_force_track_fails_and_keeps_the_old_wav() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("out.wav");
+    fs::write(&out, b"previous render").unwrap();
+    for (name, text) in [
+        ("empty.csv", ""),
+        ("nan.csv", "time_s,force\n0,0\n0.01,nan\n"),
+        ("backwards.csv", "time_s,force\n0,0\n0.02,10\n0.01,20\n"),
+        ("ragged.csv", "time_s,left.heel,left.toe\n0,0,0\n0.01,5\n"),
+    ] {
+        let csv = dir.path().join(name);
+        fs::write(&csv, text).unwrap();
+        let o = run(&[
+            "render",
+            "--material",
+            "gravel",
+            "--force",
+            s(&csv),
+            "--out",
+            s(&out),
+        ]);
+        let e = assert_error(&o);
+        assert!(e.contains(name), "{name}: {e}");
+        assert_eq!(fs::read(&out).unwrap(), b"previous render");
+    }
+    let o = run(&[
+        "render",
+        "--material",
+        "granite",
+        "--gait",
+        "steps=1",
+        "--out",
+        s(&out),
+    ]);
+    assert!(assert_error(&o).contains("granite"));
+    let o = run(&[
+        "render",
+        "--material",
+        "gravel",
+        "--gait",
+        "steps=1,speed=3",
+        "--out",
+        s(&out),
+    ]);
+    assert!(assert_error(&o).contains("speed"));
+    assert_eq!(fs::read(&out).unwrap(), b"previous render");
+}

@@ -1,0 +1,174 @@
+//! `underfoot run`: the live engine into a paced WAV file or nowhere, from a walk or a (simulated) prosthetic interface; bad inputs, outputs and configurations refused clearly.
+
+use std::fs;
+use std::path::PathBuf;
+
+use crate::common::{assert_error, assert_ok, read_wav, run, s, stderr, stdout};
+
+#[test]
+fn run_plays_a_walk_live_into_a_paced_wav() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let wav = dir.path().join("live.wav");
+    let started = std::time::Instant::now();
+    let o = run(&[
+        "run",
+        "--material",
+        "wood",
+        "--input",
+        "gait:steps=2,channels=1,lead_in=0.2,tail=0.2",
+        "--output",
+        &format!("wav:{}", s(&wav)),
+        "--gain-db",
+        "-20",
+    ]);
+    assert_ok(&o);
+    let took = started.elapsed().as_secs_f64();
+    assert!(stdout(&o).contains("2 strike(s)"), "{}", stdout(&o));
+    // Real-time pace: the walk lasts about 1.4 s, plus a second to ring out.
+    assert!(took > 2.0, "{took} s");
+    let (_, samples) = read_wav(&wav);
+    assert!(samples.iter().any(|v| v.abs() > 1e-4));
+    assert!(samples.iter().all(|v| v.abs() <= 0.5012));
+}
+
+#[test]
+fn run_rejects_bad_inputs_and_outputs_clearly() {
+    // A malformed spec is a usage error (status 2), refused while parsing (issue 14).
+    let o = run(&["run", "--input", "tcp:1234", "--output", "null"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("unknown kind"));
+    let o = run(&[
+        "run",
+        "--input",
+        "replay:/nonexistent.csv",
+        "--output",
+        "null",
+    ]);
+    assert!(assert_error(&o).contains("/nonexistent.csv"));
+    let o = run(&["run", "--input", "gait:steps=1", "--output", "speaker"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("speaker"));
+    let o = run(&[
+        "run",
+        "--input",
+        "serial:/dev/does-not-exist",
+        "--output",
+        "null",
+    ]);
+    assert!(assert_error(&o).contains("/dev/does-not-exist"));
+}
+
+/// The commented example interface configurations, at the workspace root.
+fn example(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../examples")
+        .join(name)
+}
+
+/// The first number before `what` in `text`, e.g. "12 strike(s)".
+fn count_before(text: &str, what: &str) -> u64 {
+    let at = text
+        .find(what)
+        .unwrap_or_else(|| panic!("{what:?} not in {text}"));
+    let digits: String = text[..at]
+        .trim_end()
+        .chars()
+        .rev()
+        .take_while(char::is_ascii_digit)
+        .collect();
+    digits.chars().rev().collect::<String>().parse().unwrap()
+}
+
+#[test]
+fn run_interface_plays_the_simulated_foot_and_drives_its_servos() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // The example, with a shorter walk.
+    let text = fs::read_to_string(example("prosthetic.toml")).unwrap();
+    let short = text.replace("gait = \"steps=4,", "gait = \"steps=2,");
+    assert_ne!(short, text, "the example's walk changed: update this test");
+    let config = dir.path().join("prosthetic.toml");
+    fs::write(&config, short).unwrap();
+    let wav = dir.path().join("interface.wav");
+    let o = run(&[
+        "run",
+        "--interface",
+        s(&config),
+        "--material",
+        "gravel",
+        "--output",
+        &format!("wav:{}", s(&wav)),
+        "--seconds",
+        "20",
+    ]);
+    assert_ok(&o);
+    let out = stdout(&o);
+    // Two steps on each of the four discs.
+    assert_eq!(count_before(&out, "strike(s)"), 8, "{out}");
+    let sent = count_before(&out, "servo frame(s) sent");
+    let received = count_before(&out, "servo frame(s) received");
+    assert!(sent > 20, "{out}");
+    assert!(received > 0 && received <= sent, "{out}");
+    assert_eq!(
+        count_before(&out, "insole frame(s),"),
+        count_before(&out, "insole frame(s) sent")
+    );
+    assert_eq!(count_before(&out, "rejected ("), 0, "{out}");
+    // After the walk the servos are back at rest (1100, 1100 and the reversed 1900 µs).
+    assert!(out.contains("servos at [1100, 1100, 1900] µs"), "{out}");
+    let (spec, samples) = read_wav(&wav);
+    assert_eq!(spec.channels, 4);
+    assert!(samples.iter().any(|v| v.abs() > 1e-4));
+}
+
+#[test]
+fn run_interface_refuses_a_broken_config_clearly() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let text = fs::read_to_string(example("prosthetic.toml")).unwrap();
+    let config = dir.path().join("broken.toml");
+    // A reversed range on the second servo.
+    let broken = text.replacen("range_us = [1000, 2000]", "range_us = [2000, 1000]", 2);
+    let broken = broken.replacen("range_us = [2000, 1000]", "range_us = [1000, 2000]", 1);
+    fs::write(&config, &broken).unwrap();
+    let o = run(&["run", "--interface", s(&config), "--output", "null"]);
+    let err = assert_error(&o);
+    assert!(err.contains("broken.toml"), "{err}");
+    assert!(err.contains("servo[1].range_us"), "{err}");
+    // A misspelt key, with its line.
+    let line = text
+        .lines()
+        .position(|l| l.starts_with("dead_band_us"))
+        .unwrap()
+        + 1;
+    fs::write(&config, text.replacen("dead_band_us", "deadband_us", 1)).unwrap();
+    let err = assert_error(&run(&[
+        "run",
+        "--interface",
+        s(&config),
+        "--output",
+        "null",
+    ]));
+    assert!(err.contains(&format!("broken.toml:{line}")), "{err}");
+    assert!(err.contains("deadband_us"), "{err}");
+    // A missing file.
+    let err = assert_error(&run(&[
+        "run",
+        "--interface",
+        "/nonexistent/prosthetic.toml",
+        "--output",
+        "null",
+    ]));
+    assert!(err.contains("/nonexistent/prosthetic.toml"), "{err}");
+    // A calibration file that is not one.
+    let cal = dir.path().join("sensors.json");
+    fs::write(&cal, "{\"kind\": \"something else\"}").unwrap();
+    let err = assert_error(&run(&[
+        "run",
+        "--input",
+        "serial:/dev/does-not-exist",
+        "--sensors",
+        s(&cal),
+        "--output",
+        "null",
+    ]));
+    assert!(err.contains("sensors.json"), "{err}");
+}

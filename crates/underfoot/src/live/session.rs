@@ -1,0 +1,394 @@
+//! The session: its settings, opening and starting it, the poll loop that runs it, and
+//! the summary it ends with (see the [module docs](super)).
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use crate::atomic_file::OutputFile;
+use crate::engine::{self, Controller, EngineConfig, MaterialBank, TelemetrySnapshot, TimedEvent};
+use crate::interface::config::InterfaceConfig;
+use crate::io::prosthetic::{ProstheticHost, ProstheticStats};
+use crate::io::spec::{InputSpec, OutputSpec};
+use crate::io::{EventSource, LinkEvent, SourceState, SourceStats};
+use crate::sim::{SimulatedReport, SimulatorHandle};
+use crate::units::Seconds;
+
+use super::LiveError;
+use super::input::{self, Input};
+use super::output::{Output, OutputInfo, OutputReport, Start};
+
+/// How long a poll of the input waits for readings, and the loop's period when it has
+/// nothing to wait for.
+const POLL: Duration = Duration::from_millis(20);
+
+/// How long the output rings out after an input that ends (a replay, a walk) has ended.
+const RING_OUT: Duration = Duration::from_secs(1);
+
+/// How long the shut-down fade is waited for before the output is closed anyway.
+const FADE_WAIT: Duration = Duration::from_millis(500);
+
+/// Where force comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SessionInput {
+    /// A replay, a walk, a serial port or OSC ([`InputSpec`]).
+    Spec(InputSpec),
+    /// A prosthetic-skin interface, from its configuration file (`prosthetic.toml`).
+    Interface(PathBuf),
+}
+
+/// How a serial port's frames are read ([`crate::io::serial`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SerialSettings {
+    /// Line speed.
+    pub baud: u32,
+    /// Sensors per channel in a frame, e.g. `[2, 2]` (heel and toe of two feet).
+    pub layout: Vec<usize>,
+    /// Newtons per ADC count of every sensor, when there is no calibration.
+    pub newtons_per_count: f32,
+    /// A per-sensor calibration file (`underfoot calibrate sensors`), one curve per
+    /// sensor of the frame in frame order; replaces `newtons_per_count`.
+    pub sensors: Option<PathBuf>,
+}
+
+impl Default for SerialSettings {
+    /// 115200 baud, one channel of two sensors, 0.5 N per count.
+    fn default() -> Self {
+        Self {
+            baud: 115_200,
+            layout: vec![2],
+            newtons_per_count: 0.5,
+            sensors: None,
+        }
+    }
+}
+
+/// What a session plays from and to.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SessionConfig {
+    /// Where force comes from.
+    pub input: SessionInput,
+    /// Where vibration goes.
+    pub output: OutputSpec,
+    /// The audio host (`default`, `alsa` or `jack`), for an audio output.
+    pub host: String,
+    /// Frames per buffer: requested of an audio device; the pacing period of a paced
+    /// output (16 to 8192, 256 when `None`).
+    pub buffer: Option<u32>,
+    /// A serial input's settings.
+    pub serial: SerialSettings,
+    /// Stop after this long; `None` runs until the input ends or the caller stops it.
+    pub duration: Option<Seconds>,
+    /// End the session when the input's device is lost ([`Summary::lost`]) instead of
+    /// reopening it until it comes back.
+    pub exit_on_disconnect: bool,
+    /// The files the session reads that it does not open itself (the library its
+    /// materials came from, an equalizer), and other names its input may be taken for
+    /// (a `replay:a@2` written for a track named `a@2`): a `wav:` output may be none of
+    /// them.
+    pub reads: Vec<PathBuf>,
+}
+
+impl SessionConfig {
+    /// A session from `input` to `output` with the default settings: the default audio
+    /// host and buffer, [`SerialSettings::default`], no time limit, and reconnection.
+    #[must_use]
+    pub fn new(input: SessionInput, output: OutputSpec) -> Self {
+        Self {
+            input,
+            output,
+            host: "default".to_owned(),
+            buffer: None,
+            serial: SerialSettings::default(),
+            duration: None,
+            exit_on_disconnect: false,
+            reads: Vec::new(),
+        }
+    }
+
+    /// The file of a `wav:` output, checked against the output policy
+    /// ([`crate::atomic_file`]) with every file the session reads, before anything is
+    /// opened: it is replaced (and only then) when the session has started and written
+    /// its first buffer, and from then on it is a valid WAV file on disk at any moment.
+    fn check_wav_output(&self) -> Result<Option<OutputFile>, LiveError> {
+        let OutputSpec::Wav { path } = &self.output else {
+            return Ok(None);
+        };
+        let mut inputs: Vec<&Path> = self.reads.iter().map(PathBuf::as_path).collect();
+        if let SessionInput::Interface(config) = &self.input {
+            inputs.push(config);
+        }
+        inputs.extend(self.serial.sensors.as_deref());
+        if let SessionInput::Spec(InputSpec::Replay { file, .. }) = &self.input {
+            inputs.push(file);
+        }
+        Ok(Some(OutputFile::check(path, &inputs)?))
+    }
+}
+
+/// A session whose input is open, ready to start.
+pub struct Session {
+    config: SessionConfig,
+    wav: Option<OutputFile>,
+    input: Input,
+    channels: Option<usize>,
+    ends: bool,
+    interface: Option<InterfaceConfig>,
+}
+
+impl std::fmt::Debug for Session {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Session")
+            .field("config", &self.config)
+            .field("channels", &self.channels)
+            .field("ends", &self.ends)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Session {
+    /// Checks a `wav:` output's file, then opens the input (an OSC input is bound by
+    /// [`start`](Self::start), when the materials are known).
+    ///
+    /// # Errors
+    /// The output file is refused, or the input cannot be opened: a track or
+    /// configuration that does not load, a walk that cannot be generated, a port that
+    /// cannot be opened.
+    pub fn open(config: &SessionConfig) -> Result<Self, LiveError> {
+        // The output file is checked before any input is opened.
+        let wav = config.check_wav_output()?;
+        let opened = input::open(&config.input, &config.serial)?;
+        Ok(Self {
+            config: config.clone(),
+            wav,
+            input: opened.input,
+            channels: opened.channels,
+            ends: opened.ends,
+            interface: opened.interface,
+        })
+    }
+
+    /// The number of channels the input carries, if it says: a track's or a walk's
+    /// channels, a serial frame's, an interface's vibration channels.
+    #[must_use]
+    pub fn channels(&self) -> Option<usize> {
+        self.channels
+    }
+
+    /// Whether the input ends by itself (a replay, a walk, a simulated interface board).
+    #[must_use]
+    pub fn ends(&self) -> bool {
+        self.ends
+    }
+
+    /// The prosthetic interface's configuration, if the input is one.
+    #[must_use]
+    pub fn interface(&self) -> Option<&InterfaceConfig> {
+        self.interface.as_ref()
+    }
+
+    /// Builds the engine of `config` over `bank`, each channel starting on its material
+    /// of `slots`, and starts the output playing it.
+    ///
+    /// # Errors
+    /// An OSC address that cannot be bound, an engine that cannot be built, an output
+    /// that cannot start (no such audio device or host, an audio output in a build
+    /// without one, a WAV file that cannot be created).
+    pub fn start(
+        self,
+        config: &EngineConfig,
+        bank: MaterialBank,
+        slots: &[u16],
+    ) -> Result<RunningSession, LiveError> {
+        let input = self.input.bind_osc(bank.names(), config.channels)?;
+        let (controller, engine) = engine::build(config, bank, slots)?;
+        let (output, info) = Output::start(
+            Start {
+                spec: &self.config.output,
+                wav: self.wav,
+                host: &self.config.host,
+                buffer: self.config.buffer,
+                channels: config.channels,
+                rate: config.rate,
+            },
+            engine,
+        )?;
+        let source = match input {
+            Input::Source(s) => Source::Events(s),
+            Input::Interface(host, sim) => Source::Interface(host, sim),
+            Input::OscPending(_) => unreachable!("OSC is bound above"),
+        };
+        Ok(RunningSession {
+            controller,
+            output,
+            info,
+            source,
+            ends: self.ends,
+            duration: self.config.duration,
+            exit_on_disconnect: self.config.exit_on_disconnect,
+        })
+    }
+}
+
+/// The input of a started session.
+enum Source {
+    Events(Box<dyn EventSource>),
+    Interface(Box<ProstheticHost>, Option<SimulatorHandle>),
+}
+
+impl Source {
+    fn events(&mut self) -> &mut dyn EventSource {
+        match self {
+            Source::Events(s) => s.as_mut(),
+            Source::Interface(host, _) => host.as_mut(),
+        }
+    }
+}
+
+/// A session whose output is playing: [`run`](Self::run) it.
+pub struct RunningSession {
+    controller: Controller,
+    output: Output,
+    info: OutputInfo,
+    source: Source,
+    ends: bool,
+    duration: Option<Seconds>,
+    exit_on_disconnect: bool,
+}
+
+impl std::fmt::Debug for RunningSession {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RunningSession")
+            .field("output", &self.info)
+            .field("ends", &self.ends)
+            .field("duration", &self.duration)
+            .finish_non_exhaustive()
+    }
+}
+
+/// What a prosthetic interface did in a session.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InterfaceSummary {
+    /// The host's counts: insole frames in, servo frames out, delays.
+    pub host: ProstheticStats,
+    /// The simulated board's report, if the board was simulated.
+    pub board: Option<SimulatedReport>,
+}
+
+/// What a session did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Summary {
+    /// From the start of [`RunningSession::run`] to the output's close.
+    pub elapsed: Duration,
+    /// The engine's counters: strikes, peak, limited and non-finite samples, watchdog
+    /// fades, the sensor clock.
+    pub telemetry: TelemetrySnapshot,
+    /// The input's counts.
+    pub input: SourceStats,
+    /// Events dropped because the engine's queue was full.
+    pub queue_full: u64,
+    /// The prosthetic interface's report, if the input was one.
+    pub interface: Option<InterfaceSummary>,
+    /// The output's report.
+    pub output: OutputReport,
+    /// The loss of the input's device that ended the session, with
+    /// [`SessionConfig::exit_on_disconnect`].
+    pub lost: Option<LinkEvent>,
+}
+
+impl RunningSession {
+    /// What output was started.
+    #[must_use]
+    pub fn output(&self) -> &OutputInfo {
+        &self.info
+    }
+
+    /// Polls the input and plays its events until the session ends: the input has ended
+    /// (and the output rung out for a second), the duration is over, `stop` is set, or
+    /// (with [`SessionConfig::exit_on_disconnect`]) the input's device is lost. Every
+    /// other change of the input's link is given to `on_link` as it happens. The output
+    /// then fades out and is closed.
+    ///
+    /// # Errors
+    /// The input failed, the output stopped or failed, or the engine's stop command could
+    /// not be sent.
+    pub fn run(
+        mut self,
+        stop: &AtomicBool,
+        mut on_link: impl FnMut(&LinkEvent),
+    ) -> Result<Summary, LiveError> {
+        let started = Instant::now();
+        let deadline = self
+            .duration
+            .map(|d| started + Duration::from_secs_f64(d.0.max(0.0)));
+        let mut queue_full = 0u64;
+        let mut ended_at = None;
+        // Set when the input was lost and the session is to end on it: it still fades
+        // out and reports.
+        let mut lost: Option<LinkEvent> = None;
+        let controller = &mut self.controller;
+        let source = self.source.events();
+        loop {
+            if stop.load(Ordering::SeqCst) || deadline.is_some_and(|d| Instant::now() >= d) {
+                break;
+            }
+            if let Some(t) = ended_at {
+                if Instant::now().duration_since(t) >= RING_OUT {
+                    break;
+                }
+                thread::sleep(POLL);
+                continue;
+            }
+            let polled = Instant::now();
+            let state = source.poll(POLL, &mut |event| {
+                if controller.send(TimedEvent::now(event)).is_err() {
+                    queue_full += 1;
+                }
+            })?;
+            while let Some(event) = source.link_event() {
+                if self.exit_on_disconnect && matches!(event, LinkEvent::Lost { .. }) {
+                    lost = Some(event);
+                } else {
+                    on_link(&event);
+                }
+            }
+            if lost.is_some() {
+                break;
+            }
+            if state == SourceState::Ended && self.ends {
+                ended_at = Some(Instant::now());
+            } else if state != SourceState::Open {
+                // A source that is lost or ended has nothing to wait for and may return at
+                // once: pace the loop so that it cannot spin.
+                thread::sleep(POLL.saturating_sub(polled.elapsed()));
+            }
+            controller.collect();
+            self.output.check()?;
+        }
+        controller.stop()?;
+        let fade_deadline = Instant::now() + FADE_WAIT;
+        while !controller.telemetry().stopped && Instant::now() < fade_deadline {
+            thread::sleep(Duration::from_millis(5));
+        }
+        let output = self.output.finish()?;
+        let telemetry = controller.telemetry();
+        let input = source.stats();
+        let interface = match self.source {
+            Source::Interface(host, sim) => Some(InterfaceSummary {
+                host: host.stats(),
+                board: sim.map(SimulatorHandle::finish).transpose()?,
+            }),
+            Source::Events(_) => None,
+        };
+        Ok(Summary {
+            elapsed: started.elapsed(),
+            telemetry,
+            input,
+            queue_full,
+            interface,
+            output,
+            lost,
+        })
+    }
+}

@@ -1,0 +1,170 @@
+//! Sessions run end to end, in real time, on short generated walks.
+
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+
+use super::*;
+use crate::engine::{EngineConfig, MaterialBank};
+use crate::force::gait::nominal_step;
+use crate::io::spec::{InputSpec, OutputSpec};
+use crate::material::builtin::builtin;
+use crate::synthesis::VoiceConfig;
+use crate::units::{Newtons, SampleRate, Seconds};
+
+const RATE: SampleRate = SampleRate(16_000);
+
+/// A walk of `steps` steps on one channel, with little lead-in and tail.
+fn walk(steps: usize) -> SessionInput {
+    let spec = format!("gait:steps={steps},channels=1,lead_in=0.1,tail=0.1");
+    SessionInput::Spec(spec.parse().unwrap())
+}
+
+fn engine(channels: usize) -> (EngineConfig, MaterialBank, Vec<u16>) {
+    let bank = MaterialBank::prepare(
+        builtin(),
+        RATE,
+        &VoiceConfig::default(),
+        &nominal_step(70.0, 1.8, RATE.hz()),
+        Newtons::weight_of(70.0),
+    )
+    .unwrap();
+    let slot = bank.slot("gravel").unwrap();
+    let config = EngineConfig {
+        rate: RATE,
+        channels,
+        ..EngineConfig::default()
+    };
+    (config, bank, vec![slot; channels])
+}
+
+/// An error and its sources, as the command line prints them.
+fn chain(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut source = e.source();
+    while let Some(s) = source {
+        text = format!("{text}: {s}");
+        source = s.source();
+    }
+    text
+}
+
+fn run(config: &SessionConfig, stop: bool) -> Summary {
+    let session = Session::open(config).unwrap();
+    let (engine, bank, slots) = engine(session.channels().unwrap_or(1));
+    let running = session.start(&engine, bank, &slots).unwrap();
+    running
+        .run(&AtomicBool::new(stop), |e| {
+            panic!("a walk has no link: {e}")
+        })
+        .unwrap()
+}
+
+/// The paced output's report: every output of these tests is paced.
+fn paced(report: &OutputReport) -> &PacedReport {
+    match report {
+        OutputReport::Paced(paced) => paced,
+        #[cfg(feature = "audio")]
+        OutputReport::Audio(_) => panic!("{report:?}"),
+    }
+}
+
+#[test]
+fn a_walk_plays_out_into_nothing() {
+    let config = SessionConfig::new(walk(1), OutputSpec::Null);
+    let session = Session::open(&config).unwrap();
+    assert_eq!(session.channels(), Some(1));
+    assert!(session.ends() && session.interface().is_none());
+    let summary = run(&config, false);
+    assert_eq!(summary.telemetry.strikes, 1);
+    assert!(summary.input.events > 0 && summary.input.rejected == 0);
+    assert!(summary.telemetry.sensor_clock.is_some());
+    assert!(summary.lost.is_none() && summary.interface.is_none());
+    // The walk (about 0.8 s) plays in real time, then rings out for a second.
+    assert!(summary.elapsed.as_secs_f64() > 1.5, "{:?}", summary.elapsed);
+    let paced = paced(&summary.output);
+    assert!(paced.blocks > 0 && paced.wav.is_none(), "{paced:?}");
+}
+
+#[test]
+fn a_walk_is_recorded_into_a_wav_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("live.wav");
+    let config = SessionConfig {
+        buffer: Some(64),
+        ..SessionConfig::new(walk(1), OutputSpec::Wav { path: path.clone() })
+    };
+    let summary = run(&config, false);
+    let paced = paced(&summary.output);
+    let (written, wav) = paced.wav.as_ref().expect("a WAV file");
+    assert_eq!(written, &path);
+    assert_eq!(wav.frames, paced.blocks * 64);
+    assert!(wav.peak > 0.0);
+    assert!(path.exists());
+}
+
+#[test]
+fn a_stopped_session_ends_at_once_and_a_duration_bounds_it() {
+    let config = SessionConfig::new(walk(4), OutputSpec::Null);
+    let summary = run(&config, true);
+    assert!(summary.elapsed.as_secs_f64() < 1.0, "{:?}", summary.elapsed);
+    assert_eq!(summary.telemetry.strikes, 0);
+    let config = SessionConfig {
+        duration: Some(Seconds(0.2)),
+        ..config
+    };
+    let summary = run(&config, false);
+    assert!(summary.elapsed.as_secs_f64() < 1.5, "{:?}", summary.elapsed);
+}
+
+#[test]
+fn the_wav_output_may_not_be_a_file_the_session_reads() {
+    let dir = tempfile::tempdir().unwrap();
+    let track = dir.path().join("steps.csv");
+    std::fs::write(&track, "time_s,force\n0,0\n0.01,10\n").unwrap();
+    let replay = SessionInput::Spec(InputSpec::Replay {
+        file: track.clone(),
+        speed: 2.0,
+    });
+    let output = OutputSpec::Wav {
+        path: track.clone(),
+    };
+    let e = Session::open(&SessionConfig::new(replay, output)).unwrap_err();
+    assert!(matches!(e, LiveError::Output(_)), "{e:?}");
+    assert!(chain(&e).contains("which this command reads"), "{e}");
+    // Nor any file it is told it reads.
+    let library = dir.path().join("library.json");
+    std::fs::write(&library, "{}").unwrap();
+    let config = SessionConfig {
+        reads: vec![library.clone()],
+        ..SessionConfig::new(walk(1), OutputSpec::Wav { path: library })
+    };
+    assert!(matches!(Session::open(&config), Err(LiveError::Output(_))));
+    assert_eq!(
+        std::fs::read_to_string(&track).unwrap(),
+        "time_s,force\n0,0\n0.01,10\n"
+    );
+}
+
+#[test]
+fn inputs_that_do_not_open_are_typed_errors() {
+    let missing = SessionInput::Spec(InputSpec::Replay {
+        file: PathBuf::from("/nonexistent/steps.csv"),
+        speed: 1.0,
+    });
+    let e = Session::open(&SessionConfig::new(missing, OutputSpec::Null)).unwrap_err();
+    assert!(matches!(e, LiveError::Track(_)), "{e:?}");
+    assert!(chain(&e).contains("/nonexistent/steps.csv"), "{e}");
+    let interface = SessionInput::Interface(PathBuf::from("/nonexistent/prosthetic.toml"));
+    let e = Session::open(&SessionConfig::new(interface, OutputSpec::Null)).unwrap_err();
+    assert!(matches!(e, LiveError::Interface(_)), "{e:?}");
+}
+
+#[cfg(not(feature = "audio"))]
+#[test]
+fn an_audio_output_needs_the_feature() {
+    let config = SessionConfig::new(walk(1), OutputSpec::Audio { device: None });
+    let session = Session::open(&config).unwrap();
+    let (engine, bank, slots) = engine(1);
+    let e = session.start(&engine, bank, &slots).unwrap_err();
+    assert!(matches!(e, LiveError::NoAudio), "{e:?}");
+}
