@@ -70,7 +70,7 @@
 //!   response from sweeps and the equalizer that flattens it, a user's limb
 //!   ([`compensation`]; the command line's `calibrate` subcommands).
 //! - **estimate**: find a physical model's parameters from recordings
-//!   ([`physical::estimate`]).
+//!   ([`physical::estimate`](mod@physical::estimate)).
 //! - **fit**: find a filter (or a curve) that matches measured data ([`fit`]).
 //! - **normalise**: set a drive's gain from a nominal step, so every material is played
 //!   at the level it was recorded at ([`synthesis`]).

@@ -10,8 +10,10 @@
 //!
 //! Inverse-distance weighting (Shepard, power 2) in a normalised log-parameter space:
 //!
-//! $$ d_i^2 = \sum_{j=1}^{3} \left( \frac{\ln p_j - \ln p_{ij}}{s_j} \right)^2, \qquad
-//!    w(f) = \frac{\sum_i d_i^{-2}\, w_i(f)}{\sum_i d_i^{-2}}, $$
+//! ```math
+//! d_i^2 = \sum_{j=1}^{3} \left( \frac{\ln p_j - \ln p_{ij}}{s_j} \right)^2, \qquad
+//!   w(f) = \frac{\sum_i d_i^{-2}\, w_i(f)}{\sum_i d_i^{-2}},
+//! ```
 //!
 //! with scales `s_j` Table 1's relative standard deviations ([`LOG_SCALES`]): `0.0016/0.0037`,
 //! `4.1/5.8` and `1500/2402`. The logarithm because the parameters are positive and span

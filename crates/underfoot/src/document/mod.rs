@@ -23,7 +23,7 @@
 //!
 //! # Loading and saving
 //!
-//! [`load`] reads at most [`MAX_DOCUMENT_BYTES`](crate::limits::MAX_DOCUMENT_BYTES),
+//! [`load`] reads at most [`MAX_DOCUMENT_BYTES`],
 //! checks the tag, deserializes the body, brings an older version up to date
 //! ([`Document::upgrade`]) and checks what serde cannot ([`Document::validate`]).
 //! [`save`] validates first and writes through the [output policy](crate::atomic_file):

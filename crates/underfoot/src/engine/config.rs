@@ -30,7 +30,7 @@ pub struct EngineConfig {
     /// About how often sensor readings arrive (sets the force ramp, and the reading
     /// period assumed for readings without a sensor time; default 500 Hz).
     pub sensor_rate: Hz,
-    /// Jitter margin of the sensor clock (`M` in [`clock`]): a stamped reading sent
+    /// Jitter margin of the sensor clock (`M` in [`clock`](super::clock)): a stamped reading sent
     /// without a frame plays one block plus this after its sensor time (default 10 ms).
     pub sensor_latency: Seconds,
     /// Heel-strike detection.

@@ -35,7 +35,7 @@ impl Controller {
     }
 
     /// Replaces the material in `slot` (channels playing it crossfade to the new one at
-    /// their next material change; use an [`Event::Material`] to switch). The old one
+    /// their next material change; use an [`Event::Material`](super::Event::Material) to switch). The old one
     /// comes back through [`collect`](Self::collect).
     ///
     /// # Errors

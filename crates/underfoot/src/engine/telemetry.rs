@@ -70,7 +70,7 @@ pub struct TelemetrySnapshot {
     pub peak: f32,
     /// Whether the shut-down fade has finished.
     pub stopped: bool,
-    /// Where the sensor clock is anchored ([`clock`]), once a stamped reading has come
+    /// Where the sensor clock is anchored ([`clock`](super::clock)), once a stamped reading has come
     /// without a frame: with it, a reading of sensor time `t` plays at frame
     /// `anchor.frame + round((t - anchor.time) * fs)`.
     pub sensor_clock: Option<ClockAnchor>,

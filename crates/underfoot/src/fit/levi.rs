@@ -4,9 +4,11 @@
 //! The output error `h_k - B(w_k)/A(w_k)` is non-linear in the denominator. Levi (1959)
 //! multiplies through by `A`, which makes the *equation error* linear:
 //!
-//! $$ \min_{b, a} \sum_k W_k \left| A(\omega_k) h_k - B(\omega_k) \right|^2,
-//!    \quad A(\omega) = 1 + \sum_{i=1}^{N} a_i e^{-j\omega i},
-//!    \quad B(\omega) = \sum_{i=0}^{M} b_i e^{-j\omega i}. $$
+//! ```math
+//! \min_{b, a} \sum_k W_k \left| A(\omega_k) h_k - B(\omega_k) \right|^2,
+//!   \quad A(\omega) = 1 + \sum_{i=1}^{N} a_i e^{-j\omega i},
+//!   \quad B(\omega) = \sum_{i=0}^{M} b_i e^{-j\omega i}.
+//! ```
 //!
 //! Stacking real and imaginary parts gives an ordinary real least-squares problem in the
 //! `M + N + 1` unknowns, solved here by SVD after scaling each column to unit norm.

@@ -3,17 +3,23 @@
 //! The paper (section 2.2) extracts "modal resonances ... by linear predictive coding, from
 //! periods containing few, isolated impacts". A freely decaying sum of `M` damped modes
 //!
-//! $$ x\[n\] = \sum_{m=1}^{M} A_m\, r_m^n \cos(\omega_m n + \phi_m) $$
+//! ```math
+//! x[n] = \sum_{m=1}^{M} A_m\, r_m^n \cos(\omega_m n + \phi_m)
+//! ```
 //!
 //! obeys exactly a linear recursion of order `2M`: `x[n] + a_1 x[n-1] + ... + a_p x[n-p] = 0`
 //! for `n >= p`, whose characteristic polynomial
 //!
-//! $$ A(z) = 1 + \sum_{k=1}^{p} a_k z^{-k} $$
+//! ```math
+//! A(z) = 1 + \sum_{k=1}^{p} a_k z^{-k}
+//! ```
 //!
 //! has the poles `p_m = r_m e^{\pm j\omega_m}` as its roots. A mode's frequency and decay
 //! (the time to fall by `e`) follow from its pole:
 //!
-//! $$ f = \frac{\arg p\, f_s}{2\pi}, \qquad \tau = \frac{-1}{f_s \ln|p|}. $$
+//! ```math
+//! f = \frac{\arg p\, f_s}{2\pi}, \qquad \tau = \frac{-1}{f_s \ln|p|}.
+//! ```
 //!
 //! # Finding the predictor
 //!
@@ -21,9 +27,11 @@
 //! `r[k] = (1/N) \sum_{n=0}^{N-1-k} x[n] x[n+k]` fills a Toeplitz system solved by the
 //! Levinson-Durbin recursion: with `E_0 = r[0]`, for `i = 1..=p`
 //!
-//! $$ k_i = -\frac{r\[i\] + \sum_{j=1}^{i-1} a_j^{(i-1)} r\[i-j\]}{E_{i-1}}, \quad
-//!    a_i^{(i)} = k_i, \quad a_j^{(i)} = a_j^{(i-1)} + k_i a_{i-j}^{(i-1)}, \quad
-//!    E_i = (1 - k_i^2) E_{i-1}. $$
+//! ```math
+//! k_i = -\frac{r[i] + \sum_{j=1}^{i-1} a_j^{(i-1)} r[i-j]}{E_{i-1}}, \quad
+//!   a_i^{(i)} = k_i, \quad a_j^{(i)} = a_j^{(i-1)} + k_i a_{i-j}^{(i-1)}, \quad
+//!   E_i = (1 - k_i^2) E_{i-1}.
+//! ```
 //!
 //! The reflection coefficients satisfy `|k_i| < 1` for any signal that is not a sum of
 //! undamped sinusoids, so the predictor is always minimum phase; `|k_i| >= 1` means the
@@ -35,7 +43,9 @@
 //! **Covariance method** ([`Method::Covariance`]). The forward prediction error is
 //! minimised only where the predictor sees real samples,
 //!
-//! $$ \min_a \sum_{n=p}^{N-1} \Big( x\[n\] + \sum_{k=1}^{p} a_k x\[n-k\] \Big)^2, $$
+//! ```math
+//! \min_a \sum_{n=p}^{N-1} \Big( x[n] + \sum_{k=1}^{p} a_k x[n-k] \Big)^2,
+//! ```
 //!
 //! a linear least-squares problem solved by SVD of the `(N - p) x p` data matrix (not the
 //! normal equations, whose condition number is the square). On a noiseless decay it is
@@ -46,7 +56,9 @@
 //! **Minimum-norm method** ([`Method::MinimumNorm`], the default; Kumaresan and Tufts).
 //! A long *backward* predictor of length `L = clamp(N / 3, p, 256)`,
 //!
-//! $$ \min_b \sum_{n=0}^{N-1-L} \Big( x\[n\] + \sum_{k=1}^{L} b_k x\[n+k\] \Big)^2, $$
+//! ```math
+//! \min_b \sum_{n=0}^{N-1-L} \Big( x[n] + \sum_{k=1}^{L} b_k x[n+k] \Big)^2,
+//! ```
 //!
 //! is solved with the data matrix truncated to its `p` largest singular values (the
 //! order `p` is the rank of the signal model, i.e. the number of poles), taking the

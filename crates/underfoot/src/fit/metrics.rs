@@ -7,13 +7,17 @@
 //! `C = 1 - ||M - S|| / ||M - mean(M)||` but tabulates the error term (Table I lists values
 //! from 0.03 to 35, which only the error term can reach). We report the error term
 //!
-//! $$ \mathrm{NRMSE} = \frac{\lVert M - S \rVert_2}{\lVert M - \bar M \rVert_2} $$
+//! ```math
+//! \mathrm{NRMSE} = \frac{\lVert M - S \rVert_2}{\lVert M - \bar M \rVert_2}
+//! ```
 //!
 //! so lower is better, 0 is exact, and 1 is no better than a flat line at the mean.
 //!
 //! **Log-spectral distance** in decibels, the RMS level error:
 //!
-//! $$ \mathrm{LSD} = \sqrt{\tfrac{1}{K} \sum_k \left(20 \log_{10} \frac{S_k}{M_k}\right)^2 } $$
+//! ```math
+//! \mathrm{LSD} = \sqrt{\tfrac{1}{K} \sum_k \left(20 \log_{10} \frac{S_k}{M_k}\right)^2 }
+//! ```
 //!
 //! With a 1 dB intensity JND, an LSD below 1 dB means the average level error is below what
 //! a person can tell apart.
@@ -23,10 +27,12 @@
 //! the model is first moved by the uniform gain that best matches it in dB, which is the
 //! mean level difference
 //!
-//! $$ \bar d = \tfrac{1}{K} \sum_k 20 \log_{10} \frac{S_k}{M_k} , \qquad
-//!    \mathrm{LSD}_{aligned} = \sqrt{\tfrac{1}{K} \sum_k
-//!    \left(20 \log_{10} \frac{S_k}{M_k} - \bar d\right)^2 }
-//!    = \sqrt{\mathrm{LSD}^2 - \bar d^2} . $$
+//! ```math
+//! \bar d = \tfrac{1}{K} \sum_k 20 \log_{10} \frac{S_k}{M_k} , \qquad
+//!   \mathrm{LSD}_{aligned} = \sqrt{\tfrac{1}{K} \sum_k
+//!   \left(20 \log_{10} \frac{S_k}{M_k} - \bar d\right)^2 }
+//!   = \sqrt{\mathrm{LSD}^2 - \bar d^2} .
+//! ```
 //!
 //! (the mean minimises the RMS, so no other gain does better). A model whose level was
 //! set this way (the physical model's output gain, see [`crate::physical::estimate()`])

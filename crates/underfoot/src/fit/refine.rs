@@ -2,7 +2,9 @@
 //!
 //! The paper refines Levi's fit by minimising the output error of its equation (2),
 //!
-//! $$ \min_{b,a} \sum_k W_k \left| h_k - \frac{B(\omega_k)}{A(\omega_k)} \right|^2, $$
+//! ```math
+//! \min_{b,a} \sum_k W_k \left| h_k - \frac{B(\omega_k)}{A(\omega_k)} \right|^2,
+//! ```
 //!
 //! with the damped Gauss-Newton method of Dennis and Schnabel, as MATLAB's iterative
 //! `invfreqz` does. MATLAB searches over polynomial coefficients and only reflects unstable

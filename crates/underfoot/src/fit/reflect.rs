@@ -1,8 +1,8 @@
 //! Unstable poles of a linear start, reflected into the unit circle.
 //!
-//! A pole $p$ with $|p| \ge 1$ becomes $1/\bar p$: since
-//! $|1 - p e^{-j\omega}| = |p|\,|1 - \bar p^{-1} e^{-j\omega}|$, the magnitude response
-//! keeps its shape up to the constant $|p|$, which the returned gain compensates.
+//! A pole `$p$` with `$|p| \ge 1$` becomes `$1/\bar p$`: since
+//! `$|1 - p e^{-j\omega}| = |p|\,|1 - \bar p^{-1} e^{-j\omega}|$`, the magnitude response
+//! keeps its shape up to the constant `$|p|$`, which the returned gain compensates.
 
 use num_complex::Complex64;
 

@@ -3,7 +3,9 @@
 //!
 //! The model is a sum of partial fractions
 //!
-//! $$ H(z) = d + \sum_i \frac{r_i}{z - p_i}, $$
+//! ```math
+//! H(z) = d + \sum_i \frac{r_i}{z - p_i},
+//! ```
 //!
 //! written with real unknowns: a real pole contributes `r/(z-p)`; a conjugate pair `p, p*`
 //! contributes `c_1 \psi_1 + c_2 \psi_2` with `\psi_1 = 1/(z-p) + 1/(z-p^*)` and
@@ -13,7 +15,9 @@
 //! **Pole relocation** (Gustavsen and Semlyen, 1999). With the current poles fixed, solve
 //! the linear least-squares problem
 //!
-//! $$ \sum_i c_i \psi_i(z_k) + d - h_k \sum_i \tilde c_i \psi_i(z_k) = h_k $$
+//! ```math
+//! \sum_i c_i \psi_i(z_k) + d - h_k \sum_i \tilde c_i \psi_i(z_k) = h_k
+//! ```
 //!
 //! for `c, d, c~`. It says `sigma(z) H(z) ~ (fitted rational)`, with
 //! `sigma(z) = 1 + c~^T (zI - A)^{-1} b` sharing the poles, so the zeros of `sigma` are the

@@ -105,12 +105,12 @@ pub const TARGETS: &[Target] = &[
         run: wire::run_osc,
         seeds: wire::seeds_osc,
     },
-    #[cfg(feature = "serial")]
     Target {
         name: "cli_specs",
         run: settings::run_cli_specs,
         seeds: settings::seeds_cli_specs,
     },
+    #[cfg(feature = "serial")]
     Target {
         name: "serial",
         run: wire::run_serial,

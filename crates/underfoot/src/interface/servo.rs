@@ -273,7 +273,7 @@ impl Servo {
                 None => self.stats.non_finite += 1,
             },
         }
-        #[allow(clippy::float_cmp)] // rest is an exact integer, and so is desired there
+        // An exact comparison: rest is an exact integer, and so is desired there.
         let to_rest = self.desired == rest;
         if self.desired != self.target
             && (to_rest || (self.desired - self.target).abs() >= self.config.dead_band)
@@ -678,7 +678,6 @@ mod tests {
                     "moved {} with dt {dt}", after - before
                 );
                 let change = (s.target() - target_before).abs();
-                #[allow(clippy::float_cmp)]
                 let to_rest = s.target() == rest;
                 prop_assert!(change == 0.0 || change >= dead_band || to_rest,
                     "target moved {change} < dead band {dead_band}");

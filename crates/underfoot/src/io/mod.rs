@@ -24,8 +24,11 @@
 //! caller's loop cannot spin. No readings come meanwhile, so the engine's watchdog fades
 //! the output to silence, as for any input that goes quiet.
 
+#[cfg(feature = "serial")]
 use std::collections::VecDeque;
-use std::time::{Duration, Instant};
+use std::time::Duration;
+#[cfg(feature = "serial")]
+use std::time::Instant;
 
 use crate::engine::Event;
 
@@ -151,6 +154,7 @@ impl Backoff {
     }
 }
 
+#[cfg(feature = "serial")]
 /// A source's link to a device that can be lost and reopened: the loss, the backoff
 /// between attempts, the attempts themselves, and the [`LinkEvent`]s and counts that
 /// report them. The serial sources hold one each; what "reopen" means (a port, a port and
@@ -167,6 +171,7 @@ pub(crate) struct Reconnect {
     reconnects: u64,
 }
 
+#[cfg(feature = "serial")]
 /// What [`Reconnect::retry`] did.
 pub(crate) enum Retry<T> {
     /// The device is not lost.
@@ -177,6 +182,7 @@ pub(crate) enum Retry<T> {
     Back(T),
 }
 
+#[cfg(feature = "serial")]
 impl Reconnect {
     /// A link to `device`, up, with the default [`Backoff`].
     pub(crate) fn new(device: &str) -> Self {
@@ -273,6 +279,7 @@ impl Reconnect {
     }
 }
 
+#[cfg(feature = "serial")]
 /// The reconnection state of a source whose device was lost: when to try next, since when,
 /// how many attempts.
 #[derive(Debug, Clone, Copy)]
@@ -282,6 +289,7 @@ struct Outage {
     attempts: u32,
 }
 
+#[cfg(feature = "serial")]
 impl Outage {
     /// Lost now; the first attempt after `backoff`'s next delay.
     fn start(backoff: &mut Backoff) -> Self {

@@ -107,7 +107,7 @@ fn legacy_decay() -> Seconds {
     LEGACY_DECAY
 }
 
-#[allow(clippy::trivially_copy_pass_by_ref)] // serde's skip_serializing_if passes a reference
+// By reference because serde's `skip_serializing_if` passes one.
 fn is_false(b: &bool) -> bool {
     !*b
 }

@@ -1,17 +1,19 @@
 //! The bilinear transform of a second-order analogue section.
 //!
-//! With $s = c\,\frac{1 - z^{-1}}{1 + z^{-1}}$, an analogue section
-//! $\frac{p_2 s^2 + p_1 s + p_0}{q_2 s^2 + q_1 s + q_0}$ becomes a digital biquad whose
-//! numerator (and, with $q$, denominator) coefficients are
+//! With `$s = c\,\frac{1 - z^{-1}}{1 + z^{-1}}$`, an analogue section
+//! `$\frac{p_2 s^2 + p_1 s + p_0}{q_2 s^2 + q_1 s + q_0}$` becomes a digital biquad whose
+//! numerator (and, with `$q$`, denominator) coefficients are
 //!
-//! $$ \big(p_2 c^2 + p_1 c + p_0,\; 2(p_0 - p_2 c^2),\; p_2 c^2 - p_1 c + p_0\big). $$
+//! ```math
+//! \big(p_2 c^2 + p_1 c + p_0,\; 2(p_0 - p_2 c^2),\; p_2 c^2 - p_1 c + p_0\big).
+//! ```
 //!
-//! The transform maps the whole $j\Omega$ axis onto the unit circle, warping frequency
-//! as $\Omega = c \tan(\omega / 2)$. Choosing $c = \frac{2\pi f}{\tan(\pi f / f_s)}$
-//! ([`prewarp_constant`]) makes the analogue frequency $f$ land on itself.
+//! The transform maps the whole `$j\Omega$` axis onto the unit circle, warping frequency
+//! as `$\Omega = c \tan(\omega / 2)$`. Choosing `$c = \frac{2\pi f}{\tan(\pi f / f_s)}$`
+//! ([`prewarp_constant`]) makes the analogue frequency `$f$` land on itself.
 //!
-//! A first-order ratio (both $s^2$ coefficients zero) stays first-order, rather than
-//! gaining a cancelling pole-zero pair at $z = -1$ on the unit circle.
+//! A first-order ratio (both `$s^2$` coefficients zero) stays first-order, rather than
+//! gaining a cancelling pole-zero pair at `$z = -1$` on the unit circle.
 
 use core::f64::consts::PI;
 

@@ -1,8 +1,8 @@
 //! The discrete-time Fourier transform of a finite sequence at one frequency,
-//! $X(\omega) = \sum_n x_n e^{-j\omega n}$.
+//! `$X(\omega) = \sum_n x_n e^{-j\omega n}$`.
 //!
-//! The phasor $e^{-j\omega n}$ is advanced by one complex multiplication per sample
-//! instead of a sine and a cosine, and recomputed from $\omega n$ every 1024 samples so
+//! The phasor `$e^{-j\omega n}$` is advanced by one complex multiplication per sample
+//! instead of a sine and a cosine, and recomputed from `$\omega n$` every 1024 samples so
 //! its round-off does not grow with the length.
 
 use num_complex::Complex64;

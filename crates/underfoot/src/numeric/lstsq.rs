@@ -6,9 +6,9 @@
 //! ([`SVD_SWEEPS_PER_COLUMN`] per column) so that a matrix that will not converge is an
 //! error rather than a hang.
 //!
-//! [`solve_scaled`] solves $\min_x \lVert M x - y \rVert_2$ with the columns of $M$
-//! first scaled to unit norm, $M = \tilde M S^{-1}$, $x = S \tilde x$: the scaling makes
-//! the cut-off on small singular values ($\sigma < 10^{-13} \sigma_{\max}$) relative to
+//! [`solve_scaled`] solves `$\min_x \lVert M x - y \rVert_2$` with the columns of `$M$`
+//! first scaled to unit norm, `$M = \tilde M S^{-1}$`, `$x = S \tilde x$`: the scaling makes
+//! the cut-off on small singular values (`$\sigma < 10^{-13} \sigma_{\max}$`) relative to
 //! each column's own size, so columns of very different magnitudes (powers of a
 //! frequency, say) do not look rank deficient.
 

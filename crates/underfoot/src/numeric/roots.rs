@@ -1,7 +1,7 @@
 //! Polynomial roots, from the eigenvalues of the companion matrix.
 //!
-//! For $c_0 z^m + c_1 z^{m-1} + \dots + c_m$ the companion matrix has first row
-//! $-c_{1..m} / c_0$ and ones on its subdiagonal; its eigenvalues, from the real Schur
+//! For `$c_0 z^m + c_1 z^{m-1} + \dots + c_m$` the companion matrix has first row
+//! `$-c_{1..m} / c_0$` and ones on its subdiagonal; its eigenvalues, from the real Schur
 //! form, are the roots, so complex roots arrive as exact conjugate pairs. The Schur
 //! iteration is capped, and a non-finite coefficient is refused before it starts.
 

@@ -1,7 +1,7 @@
 //! Order statistics.
 //!
 //! The median of an even count is the mean of the two middle values; the percentile is
-//! the nearest rank, $x_{(\mathrm{round}(p (n-1)))}$ of the sorted values, so it is
+//! the nearest rank, `$x_{(\mathrm{round}(p (n-1)))}$` of the sorted values, so it is
 //! always one of them. Both sort with [`f64::total_cmp`], so a NaN sorts to an end
 //! instead of breaking the sort.
 

@@ -1,5 +1,6 @@
 //! What can be wrong with a recording file.
 
+use crate::document::FileError;
 use crate::units::Seconds;
 use std::path::PathBuf;
 
@@ -11,15 +12,10 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum RecordingError {
-    /// The file could not be opened or read (not found, no permission, ...).
-    #[error("{}: cannot read file: {source}", file.display())]
-    Io {
-        /// The file.
-        file: PathBuf,
-        /// What the operating system said.
-        #[source]
-        source: std::io::Error,
-    },
+    /// The file could not be opened or read (not found, no permission, ...): the file
+    /// error names it, and says why as its source.
+    #[error(transparent)]
+    File(#[from] FileError),
 
     /// The file, or what it decodes to, is longer than the documented limit
     /// ([`crate::limits`]).
@@ -124,8 +120,8 @@ impl RecordingError {
     #[must_use]
     pub fn file(&self) -> &std::path::Path {
         match self {
-            Self::Io { file, .. }
-            | Self::TooLong { file, .. }
+            Self::File(e) => &e.path,
+            Self::TooLong { file, .. }
             | Self::Empty { file }
             | Self::TooShort { file, .. }
             | Self::Silent { file, .. }

@@ -42,6 +42,7 @@ pub mod strikes;
 
 pub use error::RecordingError;
 
+use crate::document::FileError;
 use crate::limits::read_capped;
 pub use crate::limits::{MAX_RECORDING_BYTES, MAX_RECORDING_FRAMES};
 use crate::units::{SampleRate, Seconds};
@@ -100,10 +101,11 @@ pub fn read(path: &Path, csv: Option<&CsvSpec>) -> Result<Recording, RecordingEr
                 limit: format!("{} MiB", MAX_RECORDING_BYTES >> 20),
             }
         } else {
-            RecordingError::Io {
-                file: path.to_path_buf(),
+            RecordingError::File(FileError {
+                path: path.to_path_buf(),
+                action: "reading",
                 source,
-            }
+            })
         }
     })?;
     let name = path.file_name().map_or_else(

@@ -6,7 +6,9 @@
 //! The normalised analog Butterworth low-pass of order `N` has `|H(jΩ)|² = 1/(1 + Ω^{2N})`
 //! and its poles on the left half of the unit circle,
 //!
-//! $$ p_k = -\sin\theta_k + j\cos\theta_k,\qquad \theta_k = \frac{(2k+1)\pi}{2N},\quad k = 0..N-1, $$
+//! ```math
+//! p_k = -\sin\theta_k + j\cos\theta_k,\qquad \theta_k = \frac{(2k+1)\pi}{2N},\quad k = 0..N-1,
+//! ```
 //!
 //! with no finite zeros: `H(s) = Π_k (-p_k)/(s - p_k)`, so `H(0) = 1`.
 //!
@@ -25,8 +27,10 @@
 //!
 //! The resulting magnitudes are, with `W = tan(ω/2)`,
 //!
-//! $$ |H_{lp}|^2 = \frac{1}{1 + (W/W_c)^{2N}},\quad |H_{hp}|^2 = \frac{1}{1 + (W_c/W)^{2N}},\quad
-//!    |H_{bp}|^2 = \frac{1}{1 + \left(\frac{W^2 - W_0^2}{W B}\right)^{2N}}, $$
+//! ```math
+//! |H_{lp}|^2 = \frac{1}{1 + (W/W_c)^{2N}},\quad |H_{hp}|^2 = \frac{1}{1 + (W_c/W)^{2N}},\quad
+//!   |H_{bp}|^2 = \frac{1}{1 + \left(\frac{W^2 - W_0^2}{W B}\right)^{2N}},
+//! ```
 //!
 //! so every edge is at exactly `-10 log10 2 ≈ -3.01 dB`.
 //!

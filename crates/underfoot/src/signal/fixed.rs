@@ -8,7 +8,9 @@
 //!
 //! Each section computes
 //!
-//! $$ y\[n\] = b_0 x\[n\] + b_1 x\[n-1\] + b_2 x\[n-2\] - a_1 y\[n-1\] - a_2 y\[n-2\] $$
+//! ```math
+//! y[n] = b_0 x[n] + b_1 x[n-1] + b_2 x[n-2] - a_1 y[n-1] - a_2 y[n-2]
+//! ```
 //!
 //! in direct form I: the sum of five products lands in one wide accumulator and is
 //! rounded once, so an intermediate overflow inside the sum does no harm as long as the
@@ -43,7 +45,9 @@
 //! therefore feed its past rounding errors (the bits the shift drops, known exactly) back
 //! into the accumulator with small integer weights `f_1, f_2` before rounding:
 //!
-//! $$ v\[n\] = acc\[n\] + f_1 e\[n-1\] + f_2 e\[n-2\], \quad y\[n\] = \operatorname{round}(v\[n\]), \quad e\[n\] = v\[n\] - y\[n\] $$
+//! ```math
+//! v[n] = acc[n] + f_1 e[n-1] + f_2 e[n-2], \quad y[n] = \operatorname{round}(v[n]), \quad e[n] = v[n] - y[n]
+//! ```
 //!
 //! so the error reaches the output through `(1 - f_1 z^{-1} - f_2 z^{-2}) / A(z)`
 //! instead of `1 / A(z)`. With `f_1 = round(-a_1)`, `f_2 = round(-a_2)` (2 and -1 for a
@@ -108,11 +112,17 @@
 //!
 //! Per section, with `x`, `y` Q31 and every integer part applied exactly:
 //!
-//! $$ w = x\[n\] + g_1 x\[n-1\] + g_2 x\[n-2\] $$
+//! ```math
+//! w = x[n] + g_1 x[n-1] + g_2 x[n-2]
+//! ```
 //!
-//! $$ acc = 2^{f_d - f_b} b_0 w + 2^{f_d - f_e} (e_1 x\[n-1\] + e_2 x\[n-2\]) - 2^{f_d} (c_1 y\[n-1\] + c_2 y\[n-2\]) - (d_1 y\[n-1\] + d_2 y\[n-2\]) $$
+//! ```math
+//! acc = 2^{f_d - f_b} b_0 w + 2^{f_d - f_e} (e_1 x[n-1] + e_2 x[n-2]) - 2^{f_d} (c_1 y[n-1] + c_2 y[n-2]) - (d_1 y[n-1] + d_2 y[n-2])
+//! ```
 //!
-//! $$ y\[n\] = \operatorname{round}(acc\, 2^{-f_d}) $$
+//! ```math
+//! y[n] = \operatorname{round}(acc\, 2^{-f_d})
+//! ```
 //!
 //! five 16 x 32-bit multiplies (`b_0 w` is 16 x 35 bits) as in a plain direct form,
 //! in that order, the numerator aligned by a left shift (saturating) or an arithmetic

@@ -8,7 +8,9 @@
 //! sample kept. Input sample `n` sits at index `nL` of the fine grid and output sample `m`
 //! at index `mM`, so with a zero-phase (centred, symmetric) prototype `h`
 //!
-//! $$ y_m = \sum_n x_n\, h(mM - nL). $$
+//! ```math
+//! y_m = \sum_n x_n\, h(mM - nL).
+//! ```
 //!
 //! Writing `mM = n_0 L + φ` (`0 ≤ φ < L`) and `n = n_0 - j`, the taps used are
 //! `h(φ + jL)`: only `L` different sub-filters exist, one per phase `φ`. That is the
@@ -23,8 +25,10 @@
 //! back above `0.9 f_n`, out of the bands analysed. The prototype is a windowed ideal
 //! low-pass with cutoff `f_c = f_n` (mid-transition),
 //!
-//! $$ h(k) = \frac{2 f_c}{F}\,\mathrm{sinc}\!\left(\frac{2 f_c k}{F}\right)
-//!    \frac{I_0\!\left(\beta\sqrt{1 - (k/K)^2}\right)}{I_0(\beta)},\qquad |k| \le K, $$
+//! ```math
+//! h(k) = \frac{2 f_c}{F}\,\mathrm{sinc}\!\left(\frac{2 f_c k}{F}\right)
+//!   \frac{I_0\!\left(\beta\sqrt{1 - (k/K)^2}\right)}{I_0(\beta)},\qquad |k| \le K,
+//! ```
 //!
 //! with `I_0` the modified Bessel function of the first kind. Kaiser's formulas for a
 //! stopband attenuation `A` dB and transition width `Δω = 2π (0.2 f_n)/F` rad/sample:

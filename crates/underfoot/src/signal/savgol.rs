@@ -324,7 +324,10 @@ mod tests {
 
     /// Solve the normal equations of a monomial fit in raw positions, by Gaussian elimination
     /// with partial pivoting: an independent route to the same least-squares polynomial.
-    #[allow(clippy::needless_range_loop)] // textbook index form, kept recognisable
+    #[expect(
+        clippy::needless_range_loop,
+        reason = "the textbook index form, kept recognisable"
+    )]
     fn naive_fit(t: &[f64], y: &[f64], p: usize) -> Vec<f64> {
         let m = p + 1;
         let mut a = vec![vec![0.0; m + 1]; m];

@@ -2,7 +2,9 @@
 //!
 //! A filter of order `N` is the cascade of `ceil(N/2)` biquads
 //!
-//! $$ H(z) = \prod_{i} \frac{b_{i0} + b_{i1} z^{-1} + b_{i2} z^{-2}}{1 + a_{i1} z^{-1} + a_{i2} z^{-2}} $$
+//! ```math
+//! H(z) = \prod_{i} \frac{b_{i0} + b_{i1} z^{-1} + b_{i2} z^{-2}}{1 + a_{i1} z^{-1} + a_{i2} z^{-2}}
+//! ```
 //!
 //! rather than one long ratio of polynomials. A low resonance at a high sample rate puts
 //! poles a hair's breadth from `z = 1`; expanded into one polynomial, their coefficients

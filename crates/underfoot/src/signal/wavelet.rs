@@ -4,17 +4,23 @@
 //! decomposition. One level of the transform splits a signal `x` of even length `N` into an
 //! approximation and a detail, each of `N / 2` coefficients,
 //!
-//! $$ a\[k\] = \sum_{n} h\[n\]\, x\[(2k + n) \bmod N\], \qquad
-//!    d\[k\] = \sum_{n} g\[n\]\, x\[(2k + n) \bmod N\], $$
+//! ```math
+//! a[k] = \sum_{n} h[n]\, x[(2k + n) \bmod N], \qquad
+//!   d[k] = \sum_{n} g[n]\, x[(2k + n) \bmod N],
+//! ```
 //!
 //! with the low-pass filter `h` of length `L` and the high-pass filter from the quadrature
 //! mirror relation `g[n] = (-1)^n h[L - 1 - n]`. The Daubechies filters are orthonormal,
 //!
-//! $$ \sum_n h\[n\] = \sqrt 2, \qquad \sum_n h\[n\]\, h\[n + 2m\] = \delta_m, $$
+//! ```math
+//! \sum_n h[n] = \sqrt 2, \qquad \sum_n h[n]\, h[n + 2m] = \delta_m,
+//! ```
 //!
 //! so each level is an orthogonal transform and its inverse is its transpose:
 //!
-//! $$ x\[m\] = \sum_k a\[k\]\, h\[(m - 2k) \bmod N\] + d\[k\]\, g\[(m - 2k) \bmod N\]. $$
+//! ```math
+//! x[m] = \sum_k a[k]\, h[(m - 2k) \bmod N] + d[k]\, g[(m - 2k) \bmod N].
+//! ```
 //!
 //! Level `j + 1` splits the approximation of level `j`. At rate `fs` the detail of level
 //! `j` covers roughly `fs / 2^{j+1} .. fs / 2^j` ([`detail_band`]); each of its

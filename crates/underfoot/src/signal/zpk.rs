@@ -3,7 +3,9 @@
 //! Roots come from [`numeric::roots`](crate::numeric::roots()), so complex roots arrive as
 //! exact conjugate pairs. Factoring `b(z^-1)` and `a(z^-1)` into sections:
 //!
-//! $$ b(z^{-1}) = b_{d}\, z^{-d} \prod_i (1 - q_i z^{-1}) $$
+//! ```math
+//! b(z^{-1}) = b_{d}\, z^{-d} \prod_i (1 - q_i z^{-1})
+//! ```
 //!
 //! where `d` counts leading zero coefficients (pure delays) and `q_i` are the zeros in the
 //! `z` plane. Poles are paired into sections by conjugacy; each pole section takes the

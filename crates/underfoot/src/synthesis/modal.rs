@@ -5,9 +5,11 @@
 //! A fitted filter `H(z) = B(z^-1) / A(z^-1)` with `N` distinct poles `p_k` and a numerator
 //! of degree at most `N` splits into
 //!
-//! $$ H(z) = d + \sum_{k=1}^{N} \frac{r_k}{1 - p_k z^{-1}}, \qquad
-//!    r_k = \frac{B(p_k^{-1})}{\prod_{j \ne k} (1 - p_j p_k^{-1})}, \qquad
-//!    d = \frac{b_N}{a_N}, $$
+//! ```math
+//! H(z) = d + \sum_{k=1}^{N} \frac{r_k}{1 - p_k z^{-1}}, \qquad
+//!   r_k = \frac{B(p_k^{-1})}{\prod_{j \ne k} (1 - p_j p_k^{-1})}, \qquad
+//!   d = \frac{b_N}{a_N},
+//! ```
 //!
 //! so its impulse response is `h[n] = d δ[n] + Σ r_k p_k^n`: one damped sinusoid per
 //! conjugate pair, one damped exponential per real pole. Each mode is a physical resonance

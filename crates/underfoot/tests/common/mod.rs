@@ -1,5 +1,4 @@
 //! Helpers shared by the integration tests.
-#![allow(dead_code)]
 
 use std::path::PathBuf;
 
@@ -50,14 +49,4 @@ pub fn footsteps_by_material(dir: &std::path::Path) -> Vec<(String, Vec<PathBuf>
     }
     materials.sort();
     materials
-}
-
-/// Every `*.ogg` file one level down in `dir` (one folder per material), sorted.
-pub fn footstep_files(dir: &std::path::Path) -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> = footsteps_by_material(dir)
-        .into_iter()
-        .flat_map(|(_, files)| files)
-        .collect();
-    files.sort();
-    files
 }

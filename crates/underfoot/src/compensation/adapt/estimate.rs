@@ -9,9 +9,11 @@
 //! weighs the same). For frame `m` with spectra `X_m(f)` (drive) and `A_m(f)` (accel),
 //! the cross- and auto-spectra are exponential averages
 //!
-//! $$ S_{xa} \leftarrow (1-\alpha) S_{xa} + \alpha X_m^* A_m, \quad
-//!    S_{xx} \leftarrow (1-\alpha) S_{xx} + \alpha |X_m|^2, \quad
-//!    S_{aa} \leftarrow (1-\alpha) S_{aa} + \alpha |A_m|^2, $$
+//! ```math
+//! S_{xa} \leftarrow (1-\alpha) S_{xa} + \alpha X_m^* A_m, \quad
+//!   S_{xx} \leftarrow (1-\alpha) S_{xx} + \alpha |X_m|^2, \quad
+//!   S_{aa} \leftarrow (1-\alpha) S_{aa} + \alpha |A_m|^2,
+//! ```
 //!
 //! with `α = 1 - exp(-(N/2) / (fs · memory))` ([`AdaptConfig::memory`], 3 s of analysed
 //! signal by default: the average forgets a stance that has changed within a few steps,
@@ -19,8 +21,10 @@
 //! estimate). The loaded device is
 //! the H1 estimate and its trust the magnitude-squared coherence:
 //!
-//! $$ \hat D(f) = \frac{S_{xa}(f)}{S_{xx}(f)}, \qquad
-//!    \gamma^2(f) = \frac{|S_{xa}(f)|^2}{S_{xx}(f)\, S_{aa}(f)} \in [0, 1]. $$
+//! ```math
+//! \hat D(f) = \frac{S_{xa}(f)}{S_{xx}(f)}, \qquad
+//!   \gamma^2(f) = \frac{|S_{xa}(f)|^2}{S_{xx}(f)\, S_{aa}(f)} \in [0, 1].
+//! ```
 //!
 //! H1 is unbiased by noise on the *output* (the accelerometer's), which is where the
 //! noise is: the drive is a digital signal known exactly. `γ²` is `SNR / (1 + SNR)` for

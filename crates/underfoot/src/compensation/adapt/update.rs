@@ -5,8 +5,10 @@
 //! band moves towards the weights that would flatten the loaded device, what equations
 //! (4)-(5) converge to:
 //!
-//! $$ t_k = c - 20\log_{10}|\hat D_k|, \qquad
-//!    \Delta_k = \mathrm{clip}\big(\mu (t_k - w_k) - s,\; l_k,\; h_k\big), $$
+//! ```math
+//! t_k = c - 20\log_{10}|\hat D_k|, \qquad
+//!   \Delta_k = \mathrm{clip}\big(\mu (t_k - w_k) - s,\; l_k,\; h_k\big),
+//! ```
 //!
 //! with relaxation `μ` ([`AdaptConfig::step`], 0.3), `c` the level that makes the target's
 //! mean over the trusted bins equal the weights' (so the update reshapes, it does not

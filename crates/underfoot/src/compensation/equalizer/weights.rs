@@ -5,14 +5,18 @@
 //! A sweep through the equalized device gives the accelerometer magnitude `A` on a log
 //! grid of the band. The paper writes
 //!
-//! $$ a = A - \bar A, \qquad w_k = w_{k-1} \, \frac{\bar a}{a}, $$
+//! ```math
+//! a = A - \bar A, \qquad w_k = w_{k-1} \, \frac{\bar a}{a},
+//! ```
 //!
 //! which read literally in linear units divides by a quantity that is zero on average.
 //! It is physically right in decibels, where it says "cut each frequency by as much as it
 //! stands above the mean":
 //!
-//! $$ a_{dB}(f) = A_{dB}(f) - \overline{A_{dB}}, \qquad
-//!    w_k(f) = w_{k-1}(f) \cdot 10^{-\mu\, a_{dB}(f) / 20}, $$
+//! ```math
+//! a_{dB}(f) = A_{dB}(f) - \overline{A_{dB}}, \qquad
+//!   w_k(f) = w_{k-1}(f) \cdot 10^{-\mu\, a_{dB}(f) / 20},
+//! ```
 //!
 //! with a relaxation `μ` ([`EqualizerConfig::step`], 1 by default: the paper's update).
 //! If the realised filter applied `w` exactly and the device were linear and noiseless,

@@ -10,9 +10,11 @@
 //! bounds, and keeps the best. The Jacobian is analytic: with `r_k = 20 log10|H_u(f_k)|
 //! + L − y_k`, `∂r/∂θ = (20/ln 10) Re(∂_θ H_u / H_u)` and
 //!
-//! $$ \partial_{\ln\tau} H_u = -\frac{\tau s}{(1+\tau s)^2},\quad
-//!    \partial_{\ln K} H_u = -\frac{g_2 s^2 K}{D^2},\quad
-//!    \partial_{\ln B} H_u = -\frac{g_2 s^3 B}{D^2},\qquad D = s^2 + B s + K. $$
+//! ```math
+//! \partial_{\ln\tau} H_u = -\frac{\tau s}{(1+\tau s)^2},\quad
+//!   \partial_{\ln K} H_u = -\frac{g_2 s^2 K}{D^2},\quad
+//!   \partial_{\ln B} H_u = -\frac{g_2 s^3 B}{D^2},\qquad D = s^2 + B s + K.
+//! ```
 //!
 //! **Identifiability.** Above the leg's corner `1/(2πτ)` (43 Hz for Table 1's mean),
 //! `|H_l| ≈ 1/(ωτ)`, which is −19 dB at the skin's resonance `√(k2/m2)/2π` (383 Hz),

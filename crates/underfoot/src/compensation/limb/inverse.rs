@@ -4,7 +4,9 @@
 //! the roots of the cubic numerator, which is Hurwitz (so `Z_c` is stable) exactly when
 //! (Routh) all coefficients are positive and
 //!
-//! $$ (1 + g_2)\, (b_2/m_2) > g_2\, \tau\, (k_2/m_2); $$
+//! ```math
+//! (1 + g_2)\, (b_2/m_2) > g_2\, \tau\, (k_2/m_2);
+//! ```
 //!
 //! that fails for some corners of the parameter box (a stiff, lightly damped skin under a
 //! slow leg), and is then an error. The cubic is factored (companion matrix) into a real

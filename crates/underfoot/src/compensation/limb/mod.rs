@@ -5,15 +5,19 @@
 //! The leg with the elastomer suspension is a first-order low-pass, the skin with the shoe
 //! a resonant second-order high-pass, and the two act in parallel:
 //!
-//! $$ H_l(s) = \frac{k_3}{k_3 + b_3 s} = \frac{1}{1 + \tau s}, \qquad
-//!    H_s(s) = \frac{g_2 s^2}{s^2 + (b_2/m_2) s + k_2/m_2}, \qquad
-//!    H_u = H_l + H_s, \qquad Z_c = H_u^{-1}, $$
+//! ```math
+//! H_l(s) = \frac{k_3}{k_3 + b_3 s} = \frac{1}{1 + \tau s}, \qquad
+//!   H_s(s) = \frac{g_2 s^2}{s^2 + (b_2/m_2) s + k_2/m_2}, \qquad
+//!   H_u = H_l + H_s, \qquad Z_c = H_u^{-1},
+//! ```
 //!
 //! with `τ = b3/k3` in seconds, `k2/m2` in s⁻², `b2/m2` in s⁻¹ (the three fitted values,
 //! [`LimbParams`]), and `g2 = 0.005` fixed (a sensor gain). Over a common denominator,
 //!
-//! $$ H_u(s) = \frac{g_2 \tau s^3 + (1 + g_2) s^2 + (b_2/m_2) s + k_2/m_2}
-//!                  {(1 + \tau s)\,\big(s^2 + (b_2/m_2) s + k_2/m_2\big)}. $$
+//! ```math
+//! H_u(s) = \frac{g_2 \tau s^3 + (1 + g_2) s^2 + (b_2/m_2) s + k_2/m_2}
+//!                 {(1 + \tau s)\,\big(s^2 + (b_2/m_2) s + k_2/m_2\big)}.
+//! ```
 //!
 //! The denominator is always stable. `H_u` is biproper: `H_u(0) = 1`, `H_u(∞) = g2`.
 //!

@@ -5,7 +5,9 @@
 //! Each repeat's period of the recording, `y`, is divided by the sweep in the frequency
 //! domain, with Kirkeby regularisation:
 //!
-//! $$ \hat H(f) = Y(f)\, \frac{X^*(f)}{|X(f)|^2 + \varepsilon(f)}, $$
+//! ```math
+//! \hat H(f) = Y(f)\, \frac{X^*(f)}{|X(f)|^2 + \varepsilon(f)},
+//! ```
 //!
 //! with `ε = 1e-10 max|X|^2` from the band out to halfway (in octaves) through each guard
 //! (exact division, up to round-off), rising on a log-frequency raised cosine through the

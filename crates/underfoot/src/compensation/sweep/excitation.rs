@@ -2,7 +2,9 @@
 //!
 //! An exponential sine sweep from `f1` to `f2` over `T` seconds is
 //!
-//! $$ x(t) = a \sin\big(2\pi f_1 L (e^{t/L} - 1)\big), \qquad L = \frac{T}{\ln(f_2/f_1)}, $$
+//! ```math
+//! x(t) = a \sin\big(2\pi f_1 L (e^{t/L} - 1)\big), \qquad L = \frac{T}{\ln(f_2/f_1)},
+//! ```
 //!
 //! whose instantaneous frequency `f1 e^{t/L}` rises by a constant number of octaves per
 //! second. It spends equal time per octave, so its spectrum is pink: `|X(f)|^2 ∝ 1/f`.

@@ -10,7 +10,9 @@
 //! circuit Interlink recommends) the raw reading is proportional to conductance plus an
 //! offset, so force is a power of the reading above that offset:
 //!
-//! $$ F(r) = a\,\max(r - r_0,\ 0)^{\,b}, \qquad a > 0,\quad b = 1/k \in [0.2, 5]. $$
+//! ```math
+//! F(r) = a\,\max(r - r_0,\ 0)^{\,b}, \qquad a > 0,\quad b = 1/k \in [0.2, 5].
+//! ```
 //!
 //! `r0` is the reading at no load (the amplifier's offset), `b` the curvature. This is
 //! [`CurveKind::Power`]. Below `r0` the force is zero, which is what an unloaded sensor

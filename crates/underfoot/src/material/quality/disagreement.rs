@@ -5,8 +5,10 @@
 //! compared with the mean level of the *others*, `\bar L_{-i}`, by the gain-aligned
 //! log-spectral distance
 //!
-//! $$ d_i = \sqrt{ \tfrac1K \sum_k (\Delta_k - \bar\Delta)^2 }, \quad
-//!    \Delta_k = L_i(f_k) - \bar L_{-i}(f_k), $$
+//! ```math
+//! d_i = \sqrt{ \tfrac1K \sum_k (\Delta_k - \bar\Delta)^2 }, \quad
+//!   \Delta_k = L_i(f_k) - \bar L_{-i}(f_k),
+//! ```
 //!
 //! the RMS of the level difference once its mean (the recording's gain, which depends on
 //! the step and the set-up, not the ground) is taken out. Against the others rather than

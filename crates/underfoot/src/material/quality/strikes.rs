@@ -7,7 +7,9 @@
 //!    `e[n] = sqrt( (1/W) sum_{m=n}^{n+W-1} x[m]^2 )`, gives the
 //!    **strike-to-noise ratio**
 //!
-//!    $$ \mathrm{SNR} = 20 \log_{10} \frac{\max_n e(n)}{P_{1}(e)} \ \mathrm{dB}, $$
+//! ```math
+//! \mathrm{SNR} = 20 \log_{10} \frac{\max_n e(n)}{P_{1}(e)} \ \mathrm{dB},
+//! ```
 //!
 //!    the loudest 5 ms against the noise floor, read from the quietest part of the signal
 //!    (the 1st percentile of the envelope, nearest rank: the quietest hundredth, which a

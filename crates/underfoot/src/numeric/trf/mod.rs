@@ -3,7 +3,9 @@
 //!
 //! # Problem
 //!
-//! $$ \min_x\; F(x) = \tfrac12 \lVert f(x) \rVert^2 \quad\text{subject to}\quad l \le x \le u, $$
+//! ```math
+//! \min_x\; F(x) = \tfrac12 \lVert f(x) \rVert^2 \quad\text{subject to}\quad l \le x \le u,
+//! ```
 //!
 //! with `f: R^n -> R^m`, `m >= n` typical but not required, bounds possibly infinite.
 //!
@@ -12,7 +14,9 @@
 //! With the gradient `g = J^T f`, the first-order conditions of the bounded problem are
 //! `v_i g_i = 0` for every `i`, where
 //!
-//! $$ v_i = \begin{cases} u_i - x_i & g_i < 0,\ u_i < \infty \\ x_i - l_i & g_i > 0,\ l_i > -\infty \\ 1 & \text{otherwise,} \end{cases} $$
+//! ```math
+//! v_i = \begin{cases} u_i - x_i & g_i < 0,\ u_i < \infty \\ x_i - l_i & g_i > 0,\ l_i > -\infty \\ 1 & \text{otherwise,} \end{cases}
+//! ```
 //!
 //! the distance to the bound the anti-gradient points at. A component whose anti-gradient
 //! pushes it into a bound may keep a non-zero gradient (its multiplier) as `v_i -> 0`;
@@ -25,7 +29,9 @@
 //!
 //! Each iteration minimises the quadratic model
 //!
-//! $$ q(p) = ĝ^T p + \tfrac12 p^T (\hat J^T \hat J + C) p, \qquad \hat J = J D,\quad C = \operatorname{diag}(g \circ \partial v), $$
+//! ```math
+//! q(p) = ĝ^T p + \tfrac12 p^T (\hat J^T \hat J + C) p, \qquad \hat J = J D,\quad C = \operatorname{diag}(g \circ \partial v),
+//! ```
 //!
 //! inside the trust region `‖p‖ <= Δ`, where `∂v_i ∈ {−1, 0, 1}` is the derivative of
 //! `v_i` (zero where `v_i = 1`): `C >= 0` is the curvature the scaling itself adds. This is

@@ -21,7 +21,9 @@
 //! draws. So the process is run as: draw a target `E ~ Exp(1)`, accumulate the hazard
 //! sample by sample,
 //!
-//! $$ \Lambda\[n+1\] = \Lambda\[n\] + N\[n\]\, T, \qquad T = 1/f_s , $$
+//! ```math
+//! \Lambda[n+1] = \Lambda[n] + N[n]\, T, \qquad T = 1/f_s ,
+//! ```
 //!
 //! and emit an event when the hazard accrued since the last one reaches `E`, then draw
 //! the next target and carry the excess over (`E - accrued` is kept as the hazard still
@@ -42,7 +44,9 @@
 //!
 //! An event's strike speed is
 //!
-//! $$ v = v_{rms} \sqrt{X}, \qquad X \sim \operatorname{Exp}(1), $$
+//! ```math
+//! v = v_{rms} \sqrt{X}, \qquad X \sim \operatorname{Exp}(1),
+//! ```
 //!
 //! so its kinetic energy `½ m v^2` is exponentially distributed with mean `½ m v_{rms}^2`
 //! (hence `E[v^2] = v_{rms}^2`: `v_rms` is the RMS speed). The exponential is the
@@ -55,7 +59,9 @@
 //!
 //! Each event's fragment has a size `s` (relative to a typical one) drawn log-uniformly,
 //!
-//! $$ \ln s \sim \mathcal{U}\left(-\ln(1+\sigma),\; \ln(1+\sigma)\right), $$
+//! ```math
+//! \ln s \sim \mathcal{U}\left(-\ln(1+\sigma),\; \ln(1+\sigma)\right),
+//! ```
 //!
 //! with `σ` the size spread: sizes have no preferred scale within the band, and `s` and
 //! `1/s` are equally likely. The modes of a body scale inversely with its size at a given

@@ -6,8 +6,10 @@
 //! coefficient over its samples, `d(t) = d_j[⌊t / 2^j⌋]`. The crumpling measure is its
 //! local RMS under a Gaussian window,
 //!
-//! $$ I(t) = \big\[ (g * d^2)(t) \big\]^{1/2}, \qquad
-//!    g(t) = \frac{e^{-t^2 / 2\sigma^2}}{\sum_s e^{-s^2 / 2\sigma^2}}, $$
+//! ```math
+//! I(t) = \big[ (g * d^2)(t) \big]^{1/2}, \qquad
+//!   g(t) = \frac{e^{-t^2 / 2\sigma^2}}{\sum_s e^{-s^2 / 2\sigma^2}},
+//! ```
 //!
 //! with `g` sampled out to `±4σ` and normalised to unit sum. Near the ends the window is
 //! renormalised to the part that lies inside the signal, so `I` is a local RMS everywhere
@@ -20,7 +22,9 @@
 //! counting: the onsets of the same detail band are counted ([`impact_onsets`]), and `α`
 //! is the unique value for which the expected number of events equals that count,
 //!
-//! $$ \frac{1}{f_s} \sum_n \big( e^{\alpha I\[n\]} - 1 \big) = K, $$
+//! ```math
+//! \frac{1}{f_s} \sum_n \big( e^{\alpha I[n]} - 1 \big) = K,
+//! ```
 //!
 //! i.e. the mean of `N` over the recording equals the onsets per second. The left side is
 //! zero at `α = 0` and increases without bound for any non-silent `I`, so the root exists;

@@ -5,8 +5,10 @@
 //! surface has the spectrum `F(f)` (simulated, [`super::hammer`]). The gains solve, on 192
 //! log-spaced frequencies of the band,
 //!
-//! $$ \min_{g} \sum_i \left| \frac{|F(f_i)| \sum_k g_k V_k(f_i) - M(f_i) e^{j φ_i}}{M(f_i)} \right|^2
-//!    + ρ \sum_k \lVert c_k \rVert^2 g_k^2 , $$
+//! ```math
+//! \min_{g} \sum_i \left| \frac{|F(f_i)| \sum_k g_k V_k(f_i) - M(f_i) e^{j φ_i}}{M(f_i)} \right|^2
+//!   + ρ \sum_k \lVert c_k \rVert^2 g_k^2 ,
+//! ```
 //!
 //! linear least squares on unit-norm columns `c_k` with a small ridge `ρ = 10^{-4}`
 //! (neighbouring poles of the dictionary are nearly parallel; without it their gains

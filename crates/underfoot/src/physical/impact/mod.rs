@@ -8,8 +8,10 @@
 //! is Hunt and Crossley's (*Coefficient of restitution interpreted as damping in vibroimpact*,
 //! J. Appl. Mech. 42, 1975):
 //!
-//! $$ F = \max\left(0,\; k x^{\alpha} + \lambda x^{\alpha} \dot x\right) \quad (x > 0),
-//!    \qquad F = 0 \quad (x \le 0), $$
+//! ```math
+//! F = \max\left(0,\; k x^{\alpha} + \lambda x^{\alpha} \dot x\right) \quad (x > 0),
+//!   \qquad F = 0 \quad (x \le 0),
+//! ```
 //!
 //! with stiffness `k` (N/m^α), exponent `α` (3/2 for Hertzian contact of curved bodies, 1
 //! for a linear spring) and damping `λ` (N·s/m^(α+1)). The damping scales with the
@@ -26,8 +28,10 @@
 //! Undamped (`λ = 0`) on a rigid surface, energy conservation gives the largest
 //! compression and the peak force,
 //!
-//! $$ x_{max} = \left(\frac{(\alpha+1) m v^2}{2k}\right)^{1/(\alpha+1)}, \qquad
-//!    F_{max} = k x_{max}^{\alpha}, $$
+//! ```math
+//! x_{max} = \left(\frac{(\alpha+1) m v^2}{2k}\right)^{1/(\alpha+1)}, \qquad
+//!   F_{max} = k x_{max}^{\alpha},
+//! ```
 //!
 //! and integrating `dt = dx / \dot x` with `\dot x = v \sqrt{1 - (x/x_{max})^{α+1}}` the
 //! contact time `T_c = 2 (x_{max}/v) \int_0^1 du / \sqrt{1 - u^{α+1}}` (`π \sqrt{m/k}` for
@@ -38,7 +42,9 @@
 //! = \frac{2}{3} λ m v^3 / k` (substitute `u = x/x_{max}`; `\int_0^1 u^α \sqrt{1-u^{α+1}} du
 //! = \frac{2}{3(α+1)}`). With `E = m v^2/2`, the coefficient of restitution is
 //!
-//! $$ e = \frac{v_{out}}{v_{in}} = \sqrt{1 - ΔE/E} \approx 1 - \frac{2}{3} \frac{\lambda}{k} v_{in}, $$
+//! ```math
+//! e = \frac{v_{out}}{v_{in}} = \sqrt{1 - ΔE/E} \approx 1 - \frac{2}{3} \frac{\lambda}{k} v_{in},
+//! ```
 //!
 //! whatever `α`: Hunt and Crossley's relation `λ = \frac{3}{2} a k` for `e = 1 - a v_{in}`.
 

@@ -3,21 +3,27 @@
 //! Over a sample `T = 1/f_s` the force is taken constant at a value `F` that makes energy
 //! bookkeeping exact. With the contact potential `U(x) = k x_+^{α+1} / (α+1)`:
 //!
-//! $$ F = \max\left(0,\; \frac{U(x_1) - U(x_0)}{x_1 - x_0}
-//!        + \lambda\, \frac{x_{0+}^{\alpha} + x_{1+}^{\alpha}}{2}\, \frac{x_1 - x_0}{T}\right) $$
+//! ```math
+//! F = \max\left(0,\; \frac{U(x_1) - U(x_0)}{x_1 - x_0}
+//!       + \lambda\, \frac{x_{0+}^{\alpha} + x_{1+}^{\alpha}}{2}\, \frac{x_1 - x_0}{T}\right)
+//! ```
 //!
 //! (the elastic part is the discrete gradient of `U`; at `x_1 = x_0` it is `U'(x_0)`), and
 //! the hammer moves by the trapezoidal rule:
 //!
-//! $$ v_1 = v_0 - \frac{T F}{m}, \qquad y_{h1} = y_{h0} + T \frac{v_0 + v_1}{2}
-//!    = y_{h0} + T v_0 - \frac{T^2 F}{2m}. $$
+//! ```math
+//! v_1 = v_0 - \frac{T F}{m}, \qquad y_{h1} = y_{h0} + T \frac{v_0 + v_1}{2}
+//!   = y_{h0} + T v_0 - \frac{T^2 F}{2m}.
+//! ```
 //!
 //! The surface takes the impulse `J = F T` ([`ResonatorBank`]: `h[0] = 0`), so its next
 //! displacement is `y_{s1} = y_s^{free} + h[1] F T`, with `y_s^{free}` its ringing alone.
 //! The compression at the end of the step is therefore linear in `F`:
 //!
-//! $$ x_1 = x_{pred} - C F, \qquad x_{pred} = x_0 + T v_0 - (y_s^{free} - y_{s0}),
-//!    \qquad C = \frac{T^2}{2m} + T\, h\[1\] > 0, $$
+//! ```math
+//! x_1 = x_{pred} - C F, \qquad x_{pred} = x_0 + T v_0 - (y_s^{free} - y_{s0}),
+//!   \qquad C = \frac{T^2}{2m} + T\, h[1] > 0,
+//! ```
 //!
 //! and `F` depends on `x_1`: one scalar equation per sample in contact, solved by
 //! bracketed regula falsi (Illinois). `F ≥ 0` bounds `x_1 ≤ x_pred`; the elastic part is
@@ -31,7 +37,9 @@
 //!
 //! On a rigid surface `x = y_h`, and with `E = m v^2/2 + U(x)` and `Δx = T (v_0+v_1)/2`,
 //!
-//! $$ E_1 - E_0 = -F\, Δx + U(x_1) - U(x_0). $$
+//! ```math
+//! E_1 - E_0 = -F\, Δx + U(x_1) - U(x_0).
+//! ```
 //!
 //! Unclamped, `F Δx = U(x_1) - U(x_0) + λ \bar{x^α} Δx^2 / T`, so
 //! `E_1 - E_0 = -λ \bar{x^α} Δx^2/T ≤ 0`; clamped (`F = 0`, which needs `Δx < 0`),

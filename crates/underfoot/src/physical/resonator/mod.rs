@@ -6,7 +6,9 @@
 //! `k` is a damped oscillator of modal mass `m_k`; a force impulse of `J` newton-seconds
 //! at `t = 0` sets its velocity to `J / m_k` and leaves it ringing as
 //!
-//! $$ y_k(t) = g_k\, J\, e^{-t/\tau_k} \sin(2\pi f_k t), \qquad g_k = \frac{1}{2\pi f_k m_k}, $$
+//! ```math
+//! y_k(t) = g_k\, J\, e^{-t/\tau_k} \sin(2\pi f_k t), \qquad g_k = \frac{1}{2\pi f_k m_k},
+//! ```
 //!
 //! a damped sine: it starts from rest at zero displacement, which is why the impulse
 //! response of a mode to a force is a sine and not a cosine. `f_k` is the frequency one
@@ -20,16 +22,20 @@
 //! Sampling `y_k` at `t = n / f_s` gives, with the pole
 //! `p_k = e^{s_k / f_s} = e^{-1/(τ_k f_s)} e^{i 2π f_k / f_s}`,
 //!
-//! $$ h\[n\] = \sum_k g_k \operatorname{Im} p_k^n , $$
+//! ```math
+//! h[n] = \sum_k g_k \operatorname{Im} p_k^n ,
+//! ```
 //!
 //! so the sampled response passes through the continuous one at every sample: each mode's
 //! frequency and decay are exact at any rate, not warped as a bilinear transform would
 //! warp them. Each sample of input is taken as the impulse `J[n]` (N·s) delivered during
 //! that sample, at its start. One complex one-pole per mode runs it:
 //!
-//! $$ z_k\[n+1\] = p_k \left(z_k\[n\] + J\[n\]\right), \qquad
-//!    y\[n\] = \sum_k g_k \operatorname{Im} z_k\[n\], \qquad
-//!    \dot y\[n\] = \sum_k \operatorname{Im}\left(g_k s_k z_k\[n\]\right). $$
+//! ```math
+//! z_k[n+1] = p_k \left(z_k[n] + J[n]\right), \qquad
+//!   y[n] = \sum_k g_k \operatorname{Im} z_k[n], \qquad
+//!   \dot y[n] = \sum_k \operatorname{Im}\left(g_k s_k z_k[n]\right).
+//! ```
 //!
 //! `h[0] = 0`: an impulse moves the surface only from the next sample on, so a contact
 //! force computed from the surface's position is never in a delay-free loop with it.

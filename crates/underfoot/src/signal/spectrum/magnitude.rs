@@ -2,7 +2,9 @@
 //!
 //! [`SpectrumPlan::magnitude`] writes `|X_k|`, `k = 0..=N/2`, of the unnormalised DFT
 //!
-//! $$ X_k = \sum_{n=0}^{N-1} x_n\, e^{-2\pi j k n / N} $$
+//! ```math
+//! X_k = \sum_{n=0}^{N-1} x_n\, e^{-2\pi j k n / N}
+//! ```
 //!
 //! of `x` zero-padded to `N = n_fft`. Zero padding does not change the DTFT of a finite
 //! signal, it samples it more finely: `X_k = X(e^{jω})` at `ω = 2πk/N`. No window and no

@@ -3,7 +3,9 @@
 //!
 //! All three rest on the unnormalised DFT of a frame zero-padded to `N` samples,
 //!
-//! $$ X_k = \sum_{n=0}^{N-1} x_n\, e^{-2\pi j k n / N}, \qquad k = 0, \dots, N/2, $$
+//! ```math
+//! X_k = \sum_{n=0}^{N-1} x_n\, e^{-2\pi j k n / N}, \qquad k = 0, \dots, N/2,
+//! ```
 //!
 //! taken with a real FFT planned once for `N` ([`SpectrumPlan`]).
 //!

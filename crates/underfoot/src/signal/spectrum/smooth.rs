@@ -5,8 +5,10 @@
 //! spectrum is treated as piecewise constant in power, bin `j` owning the interval
 //! `[j - ½, j + ½]` (bin 0 only `[0, ½]`, the DC half), so that
 //!
-//! $$ S_k = \sqrt{\frac{1}{f_2 - f_1}\int_{f_1}^{f_2} |X(\nu)|^2\, d\nu}, \qquad
-//!    [f_1, f_2] = [k/r,\ k r] \cap [0, N_b - ½] $$
+//! ```math
+//! S_k = \sqrt{\frac{1}{f_2 - f_1}\int_{f_1}^{f_2} |X(\nu)|^2\, d\nu}, \qquad
+//!   [f_1, f_2] = [k/r,\ k r] \cap [0, N_b - ½]
+//! ```
 //!
 //! in units of bins (the smoothing is scale-free, so `Δf` cancels). Partly covered bins
 //! count in proportion to their overlap: a band narrower than a bin, as at low

@@ -4,8 +4,10 @@
 //! Frames of `N` samples ([`Spectrogram::window_len`]: bins of 4 to 6 Hz) are weighted
 //! by the Hann window and transformed:
 //!
-//! $$ w_n = \tfrac12 - \tfrac12 \cos\frac{2\pi n}{N}, \qquad
-//!    X^{(m)}_k = \sum_{n=0}^{N-1} w_n\, x_{m - N/2 + n}\, e^{-2\pi j k n / N}, $$
+//! ```math
+//! w_n = \tfrac12 - \tfrac12 \cos\frac{2\pi n}{N}, \qquad
+//!   X^{(m)}_k = \sum_{n=0}^{N-1} w_n\, x_{m - N/2 + n}\, e^{-2\pi j k n / N},
+//! ```
 //!
 //! the frame centred on sample `m`, with `x` zero outside the signal. Column `c` spans
 //! the samples `c h ..= (c + 1) h` for a hop `h` that gives at most the number of columns
@@ -14,7 +16,9 @@
 //! centred at `m = c h + (2i + 1) h / (2F)`, `i = 0..F`, and their power is summed, so
 //! that no stretch of the signal (no footstep) goes unseen:
 //!
-//! $$ P_c(k) = \sum_{i=0}^{F-1} \left| X^{(m_i)}_k \right|^2 . $$
+//! ```math
+//! P_c(k) = \sum_{i=0}^{F-1} \left| X^{(m_i)}_k \right|^2 .
+//! ```
 //!
 //! The bins `0..B` up to the top frequency are grouped into at most the number of rows
 //! asked for, row `r` holding bins `⌊r B / R⌋ .. ⌊(r + 1) B / R⌋`, and a row takes the
@@ -22,8 +26,10 @@
 //! bins it shares the row with). A cell's level is in dB re the loudest cell, floored at
 //! `-range`:
 //!
-//! $$ L_{c,r} = \max\!\left(10 \log_{10} \frac{\max_{k \in r} P_c(k)}{\max_{c', r'} P_{c'}(r')},
-//!    \ -\text{range}\right), $$
+//! ```math
+//! L_{c,r} = \max\!\left(10 \log_{10} \frac{\max_{k \in r} P_c(k)}{\max_{c', r'} P_{c'}(r')},
+//!   \ -\text{range}\right),
+//! ```
 //!
 //! and an all-zero signal is at the floor everywhere.
 

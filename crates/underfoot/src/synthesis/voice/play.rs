@@ -3,8 +3,10 @@
 //! A voice copies a [`PreparedMaterial`]'s coefficients into fixed-size arrays (so
 //! loading one never allocates) and runs them:
 //!
-//! $$ s_k\[n\] = p_k\, s_k\[n-1\] + \tilde r_k\, x\[n\], \qquad
-//!    y\[n\] = \tilde d\, x\[n\] + \sum_k c_k \operatorname{Re} s_k\[n\] $$
+//! ```math
+//! s_k[n] = p_k\, s_k[n-1] + \tilde r_k\, x[n], \qquad
+//!   y[n] = \tilde d\, x[n] + \sum_k c_k \operatorname{Re} s_k[n]
+//! ```
 //!
 //! with `c_k = 2` for a conjugate pair and 1 for a real pole, then the post filter. The
 //! modes run in parallel, each as a complex one-pole: a rotation by `p_k` in the
