@@ -281,7 +281,7 @@ pub fn list_table(models: &[MaterialModel]) -> String {
     out
 }
 
-/// The fit table of the paper's Table I, one row per material.
+/// The fit table of the IIR paper's Table I, one row per material.
 pub fn fit_table(models: &[MaterialModel]) -> String {
     use Align::{Left, Right};
     let rows: Vec<Vec<String>> = models

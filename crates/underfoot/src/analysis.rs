@@ -1,16 +1,16 @@
 //! The measured response of a material: what its heel strikes sound like, on average.
 //!
-//! Each recording goes through the conditioning chain of the paper's section IV-A, with
+//! Each recording goes through the conditioning chain of the IIR paper's section IV-A, with
 //! onsets found automatically rather than by hand:
 //!
-//! 1. **Denoise** with a Savitzky-Golay smoother at the recording's own rate (the paper's
+//! 1. **Denoise** with a Savitzky-Golay smoother at the recording's own rate (the IIR paper's
 //!    "17th order" filter at 1 kHz). By default the window is the widest whose response stays
 //!    within 0.1 dB of unity up to the top of the band, so the smoother removes what lies
 //!    above the band and leaves the band itself alone, whatever the recording's rate.
 //! 2. **Resample** to the analysis rate with a band-limited polyphase resampler.
 //! 3. **Remove the trend**: a zero-phase Butterworth filter, high-pass at half the band's
 //!    lower edge and (when there is room below the Nyquist frequency) low-pass at 1.5 times
-//!    its upper edge. The paper put the band-pass edges on the band itself; forward-backward
+//!    its upper edge. The IIR paper put the band-pass edges on the band itself; forward-backward
 //!    filtering then takes 6 dB off the band edges, which would be fitted as if it were the
 //!    material's. An octave of margin below and half an octave above keep the band clean.
 //!    Above the band, the resampler's anti-alias filter already does the low-pass's work

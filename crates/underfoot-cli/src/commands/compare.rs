@@ -27,7 +27,7 @@
 //! ```
 //!
 //! and `--plot DIR` draws `DIR/NAME.svg` (or `.png` with `--plot-format png`): measured,
-//! IIR and physical (held-out render) spectra in one panel, the paper's Fig. 4.
+//! IIR and physical (held-out render) spectra in one panel, the IIR paper's Fig. 4.
 
 use std::path::{Path, PathBuf};
 

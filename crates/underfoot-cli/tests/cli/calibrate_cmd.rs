@@ -30,7 +30,7 @@ fn a_compensation_session_on_the_simulated_tile() {
         s(&plot),
     ]);
     assert_ok(&o);
-    // Pass 3's RMS deviation, from the table: below the paper's 0.28 dB.
+    // Pass 3's RMS deviation, from the table: below the compensation paper's 0.28 dB.
     let last = stdout(&o)
         .lines()
         .find(|l| l.trim_start().starts_with("3 "))

@@ -13,7 +13,7 @@ fn compare_prints_table_one_for_the_papers_five_materials() {
     let dir = tempfile::tempdir().expect("tempdir");
     let json = dir.path().join("table.json");
     let plots = dir.path().join("fig4");
-    // The paper's broken stone, concrete, sand, earth and snow.
+    // The IIR paper's broken stone, concrete, sand, earth and snow.
     let pairs: Vec<String> = ["gravel", "hard", "sand", "dirt", "snow"]
         .iter()
         .map(|m| format!("{m}={}", data.join(m).display()))
@@ -46,7 +46,7 @@ fn compare_prints_table_one_for_the_papers_five_materials() {
                 "{name} {model} in the table"
             );
         }
-        // The fitted filter is the closer of the two, as in the paper; both are close.
+        // The fitted filter is the closer of the two, as in the IIR paper; both are close.
         assert!(row["iir"]["lsd_db"].as_f64().unwrap() <= 1.0, "{name}");
         assert!(row["physical"]["lsd_db"].as_f64().unwrap() <= 3.0, "{name}");
         let svg = fs::read_to_string(plots.join(format!("{name}.svg"))).expect("plot");

@@ -1,5 +1,5 @@
 //! The compensation the engine applies to each output channel, before its limiter: the
-//! device equalizer, then the limb compensation `Z_c` (the cascade of the paper's
+//! device equalizer, then the limb compensation `Z_c` (the cascade of the compensation paper's
 //! Fig. 3).
 //!
 //! [`Compensation`] is the description (built off the audio thread, from files);

@@ -7,7 +7,7 @@
 //! sub-band gains with a delay of `N - 1` samples, and the resolution the device's
 //! resonances need (bins of about 10 Hz, `N = 4096` at 48 kHz) makes that 85 ms: far
 //! above the one or two milliseconds between a heel strike and the vibration that users
-//! expect. The low-delay filter-bank equalizer (Löllmann & Vary, the paper's reference
+//! expect. The low-delay filter-bank equalizer (Löllmann & Vary, the compensation paper's reference
 //! \[2\]) keeps the bank's weights but applies them with a time-domain filter. Of all
 //! causal filters with a given magnitude response, the minimum-phase one concentrates its
 //! energy earliest: it has no bulk delay, only the group delay the resonances it corrects

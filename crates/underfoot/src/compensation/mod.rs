@@ -25,6 +25,32 @@
 //! The simulated tile and user that stand in for the hardware and a person, in the tests
 //! and on the command line (`--device simulated`), are in [`crate::sim`].
 //!
+//! # Example
+//!
+//! Measure a device with a sweep and flatten it: here the simulated tile (a device of
+//! known response, with its own measurement noise) and two corrected passes of the
+//! equalizer, realised as the low-delay filter the engine runs.
+//!
+//! ```
+//! use underfoot::compensation::equalizer::{EqualizerConfig, Realisation, equalize};
+//! use underfoot::compensation::sweep::{Sweep, SweepConfig, measure};
+//! use underfoot::sim::{SimulatedTile, TileConfig};
+//! use underfoot::units::SampleRate;
+//!
+//! let rate = SampleRate(48_000);
+//! let sweep = Sweep::new(SweepConfig::new(rate))?;
+//! let mut tile = SimulatedTile::new(&TileConfig::default(), rate)?;
+//!
+//! // The bare tile: its deviation from flat over the band, in dB RMS.
+//! let bare = measure(&mut tile, &sweep)?;
+//! assert!(bare.deviation_from_flat_db().0 > 2.0);
+//!
+//! // Pass 1 measures it, pass 2 measures it through the weights pass 1 corrected.
+//! let eq = equalize(&mut tile, &sweep, EqualizerConfig::default(), Realisation::default(), 2)?;
+//! assert!(eq.passes[1].deviation.0 < 0.5 * eq.passes[0].deviation.0);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
 //! Set-up allocates; the per-sample paths never do. Errors are [`CompensationError`];
 //! reading and writing the files is the [document layer](crate::document)'s, with its
 //! [`DocumentError`](crate::document::DocumentError) (whose validation reason is a

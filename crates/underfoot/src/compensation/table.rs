@@ -1,7 +1,7 @@
 //! The table of users: each known user's equalizer curve, and the curve for a new user
 //! interpolated from their limb parameters.
 //!
-//! The paper replaces real-time correction by a preset equalizer per user, looked up from
+//! The compensation paper replaces real-time correction by a preset equalizer per user, looked up from
 //! the user's limb parameters ([`LimbParams`]) and interpolated between known users. Each
 //! entry holds a curve of spectral weights in dB on the table's common frequency grid
 //! (typically the device equalizer's weights plus `|Z_c|` in dB); the caller computes them.

@@ -7,7 +7,7 @@
 //! The filters are exported at each model's own rate (2 kHz for the built-ins), the rate
 //! they were fitted at: no re-design, so the exported float filter *is* the model. A
 //! device that plays at a higher rate upsamples the filter's output (or the drive), as the
-//! acquisition board of the paper samples at the analysis rate anyway. At 2 kHz the
+//! acquisition board of the IIR paper samples at the analysis rate anyway. At 2 kHz the
 //! lowest resonances (20 Hz) sit at `θ = 0.063` rad, 24 times further from `z = 1` than
 //! at 48 kHz, which is what lets a 16-bit direct form hold them at all.
 //!

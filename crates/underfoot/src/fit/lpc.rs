@@ -1,6 +1,6 @@
 //! Linear prediction for the modal analysis of isolated impacts.
 //!
-//! The paper (section 2.2) extracts "modal resonances ... by linear predictive coding, from
+//! The tile paper (section 2.2) extracts "modal resonances ... by linear predictive coding, from
 //! periods containing few, isolated impacts". A freely decaying sum of `M` damped modes
 //!
 //! ```math

@@ -3,7 +3,7 @@
 //! Both metrics compare magnitudes `M_k` (measured) and `S_k` (synthesised) on the same
 //! frequencies, by default 96 log-spaced points of the band.
 //!
-//! **NRMSE** (the paper's equation 3). The paper writes the goodness of fit
+//! **NRMSE** (the IIR paper's equation 3). The IIR paper writes the goodness of fit
 //! `C = 1 - ||M - S|| / ||M - mean(M)||` but tabulates the error term (Table I lists values
 //! from 0.03 to 35, which only the error term can reach). We report the error term
 //!

@@ -1,11 +1,11 @@
 //! Fitting an IIR filter to a measured response.
 //!
-//! The filter of the paper's equation (1) is a ratio of polynomials of order `N` in `z^-1`;
+//! The filter of the IIR paper's equation (1) is a ratio of polynomials of order `N` in `z^-1`;
 //! here it is found and kept as second-order sections (see [`crate::signal::sos`]). For each
 //! candidate order the fit runs three linear starts and two non-linear refinements, and keeps
 //! what wins on the log-spectral distance:
 //!
-//! 1. **Starts.** [`levi`](levi::levi): Levi's linearised least squares, the paper's initial
+//! 1. **Starts.** [`levi`](levi::levi): Levi's linearised least squares, the IIR paper's initial
 //!    guess and Octave's `invfreqz`; [`sanathanan_koerner`](levi::sanathanan_koerner): the same,
 //!    re-weighted until the equation error approaches the output error (Steiglitz-McBride);
 //!    [`vector_fit`](vector_fit::vector_fit): pole relocation in a partial-fraction basis,

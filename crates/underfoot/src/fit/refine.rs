@@ -1,6 +1,6 @@
 //! Damped Gauss-Newton refinement over stable second-order sections.
 //!
-//! The paper refines Levi's fit by minimising the output error of its equation (2),
+//! The IIR paper refines Levi's fit by minimising the output error of its equation (2),
 //!
 //! ```math
 //! \min_{b,a} \sum_k W_k \left| h_k - \frac{B(\omega_k)}{A(\omega_k)} \right|^2,

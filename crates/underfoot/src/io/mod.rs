@@ -14,6 +14,37 @@
 //! Inputs implement [`EventSource`]: a blocking poll, run on its own thread, whose events
 //! go to the engine over its lock-free queue.
 //!
+//! # Example
+//!
+//! A generated walk replayed at 100 times real-time pace (a recorded track reads the same
+//! way, from [`ForceTrack::read`](crate::force::track::ForceTrack::read)): every force
+//! reading comes out as an engine [`Event`], stamped with its sensor time.
+//!
+//! ```
+//! use std::time::Duration;
+//! use underfoot::engine::Event;
+//! use underfoot::force::gait::{GaitConfig, generate};
+//! use underfoot::io::replay::ReplaySource;
+//! use underfoot::io::{EventSource, SourceState};
+//!
+//! let walk = generate(&GaitConfig::from_spec("steps=2,channels=1")?)?;
+//! let mut source = ReplaySource::new(walk.track, 100.0)?;
+//! let mut readings = 0;
+//! loop {
+//!     let state = source.poll(Duration::from_millis(10), &mut |event| {
+//!         if let Event::Force { reading, .. } = event {
+//!             assert!(reading.time().is_some());
+//!             readings += 1;
+//!         }
+//!     })?;
+//!     if state == SourceState::Ended {
+//!         break;
+//!     }
+//! }
+//! assert_eq!(readings as u64, source.stats().events);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
 //! # A lost device
 //!
 //! A serial port can hang up (a USB adapter pulled, the board reset, the far end of a

@@ -1,6 +1,6 @@
 //! Material models and the library file that holds them.
 //!
-//! A [`MaterialModel`] is one row of the paper's soil-type look-up table (Fig. 3): the
+//! A [`MaterialModel`] is one row of the IIR paper's soil-type look-up table (Fig. 3): the
 //! fitted filter of one ground material, with the evidence of how well it fits. A
 //! [`Library`] is the versioned JSON file of many of them. [`evaluate`] measures how
 //! closely a render reproduces a material.

@@ -17,6 +17,31 @@
 //!
 //! All are prepared once (where they may allocate and validate) and then run without
 //! allocating or panicking.
+//!
+//! # Example
+//!
+//! The built-in gravel's physical model, estimated from its recordings, running: the
+//! rising force of a heel coming down (its loading rate `v_F`, in N/s) sets the rate of
+//! micro-impacts, each ringing the surface's modes.
+//!
+//! ```
+//! use underfoot::material::builtin::builtin;
+//! use underfoot::physical::{Ground, GroundKind};
+//! use underfoot::units::SampleRate;
+//!
+//! let library = builtin();
+//! let gravel = library.get("gravel")?.physical.as_ref().expect("gravel has a physical model");
+//! assert_eq!(gravel.kind, GroundKind::Aggregate);
+//!
+//! let mut ground = Ground::new(gravel, SampleRate(48_000), 1, 256)?;
+//! // 0.1 s of a heel loading at 10 kN/s (700 N in 70 ms), then standing still.
+//! let loading: Vec<f32> = (0..4800).map(|n| if n < 3360 { 10_000.0 } else { 0.0 }).collect();
+//! let mut out = vec![0.0f32; loading.len()];
+//! assert_eq!(ground.process(&loading, &mut out), 0); // 0: nothing went non-finite
+//! assert!(ground.events() > 10);
+//! assert!(out.iter().any(|y| *y != 0.0));
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 pub mod aggregate;
 pub mod estimate;

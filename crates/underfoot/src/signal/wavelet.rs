@@ -1,6 +1,6 @@
 //! Daubechies discrete wavelet transform.
 //!
-//! The paper (section 2.2) isolates impact onsets in the second detail band of a Daubechies
+//! The tile paper (section 2.2) isolates impact onsets in the second detail band of a Daubechies
 //! decomposition. One level of the transform splits a signal `x` of even length `N` into an
 //! approximation and a detail, each of `N / 2` coefficients,
 //!

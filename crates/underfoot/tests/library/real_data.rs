@@ -2,7 +2,7 @@
 //! checks the acceptance criteria: a stable filter of order <= 16, a log-spectral distance
 //! of at most 1 dB, and an NRMSE below the plain Levi fit's at the same order; that what
 //! is stored is what plays (no pole beyond the stored decay limit, nothing for the voice
-//! to change); and, checked from outside the conditioning chain, that on the paper's five
+//! to change); and, checked from outside the conditioning chain, that on the IIR paper's five
 //! materials the fitted response is within 1 dB of the strikes' raw spectrum (resampled
 //! and 1/6-octave smoothed only) and no further from it than a plain Levi fit of the same
 //! order made on that raw spectrum.
@@ -20,7 +20,7 @@ use underfoot::recording::{Recording, read};
 use underfoot::synthesis::{PreparedMaterial, VoiceConfig};
 use underfoot::units::SampleRate;
 
-/// The paper's five materials (broken stone, concrete, sand, earth, snow).
+/// The IIR paper's five materials (broken stone, concrete, sand, earth, snow).
 const PAPER: [&str; 5] = ["gravel", "hard", "sand", "dirt", "snow"];
 
 #[test]

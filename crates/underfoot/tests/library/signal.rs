@@ -1,4 +1,4 @@
-//! The conditioning chain of the paper (section III-A) on a synthetic heel strike:
+//! The conditioning chain of the IIR paper (section III-A) on a synthetic heel strike:
 //! Savitzky-Golay denoising at the recording rate, resampling to the analysis rate,
 //! zero-phase Butterworth band-pass, then a smoothed magnitude spectrum.
 

@@ -1,4 +1,4 @@
-//! `underfoot calibrate equalize`: the device equalizer (the paper's equations 4-5), tuned
+//! `underfoot calibrate equalize`: the device equalizer (the compensation paper's equations 4-5), tuned
 //! by successive sweeps, each through the weights of the passes before it.
 
 use std::path::{Path, PathBuf};

@@ -1,4 +1,4 @@
-//! `underfoot calibrate limb`: a user's rheological limb model (the paper's equations
+//! `underfoot calibrate limb`: a user's rheological limb model (the compensation paper's equations
 //! 1-3) fitted to sweeps measured with the user standing on the device.
 
 use std::path::{Path, PathBuf};

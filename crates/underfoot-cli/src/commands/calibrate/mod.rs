@@ -36,7 +36,7 @@ pub use user::{UserArg, parse_user};
 pub enum CalibrateCommand {
     /// Measure a device's frequency response with exponential sine sweeps.
     Sweep(SweepArgs),
-    /// Tune the device equalizer by successive sweeps (the paper's equations 4-5).
+    /// Tune the device equalizer by successive sweeps (the compensation paper's equations 4-5).
     Equalize(EqualizeArgs),
     /// Fit a user's rheological limb model (equations 1-3) to loaded sweeps.
     Limb(LimbArgs),

@@ -1,5 +1,5 @@
 //! Online adaptation of the equalizer while a person stands and walks on the tile: the
-//! paper's future work ("adaptively changing the spectral weights in real time as the
+//! compensation paper's future work ("adaptively changing the spectral weights in real time as the
 //! user walks on the device").
 //!
 //! The [equalizer](super::equalizer) is tuned by sweeps on the *unloaded* tile. A foot on

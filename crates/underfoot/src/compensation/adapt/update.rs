@@ -21,7 +21,7 @@
 //! Why: `μ < 1` averages the estimate's noise over several updates (a first-order
 //! smoother of the target with time constant `interval / μ`); `δ` makes any change
 //! slow and small enough to be unnoticed (0.5 dB is at the lower end of the 0.45-3 dB
-//! intensity discrimination threshold the paper cites), however wrong an estimate; the
+//! intensity discrimination threshold the compensation paper cites), however wrong an estimate; the
 //! zero-sum shift keeps the in-band mean exactly without moving untrusted bins, which a
 //! plain re-level would.
 //!

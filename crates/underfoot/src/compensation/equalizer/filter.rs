@@ -1,10 +1,10 @@
 //! The weights as a running filter: the filter bank, or its low-delay minimum-phase form.
 //!
-//! - [`Realisation::Bank`]: the paper's uniform FFT analysis-synthesis filter bank (WOLA,
+//! - [`Realisation::Bank`]: the compensation paper's uniform FFT analysis-synthesis filter bank (WOLA,
 //!   [`FilterBank`] with `N` bands, hop `N/4`), gains = weights. Its latency is `N - 1`
 //!   samples (85.3 ms for `N = 4096` at 48 kHz).
 //! - [`Realisation::LowDelay`]: the same weights as a minimum-phase FIR
-//!   ([`MinPhaseDesigner`], the low-delay filter-bank equalizer of the paper's reference
+//!   ([`MinPhaseDesigner`], the low-delay filter-bank equalizer of the compensation paper's reference
 //!   \[2\]): no bulk delay, for the milliseconds between heel strike and vibration.
 
 use serde::{Deserialize, Serialize};

@@ -3,8 +3,8 @@
 //!
 //! A sweep through the equalized device gives its response; the weights, a gain in dB on
 //! each bin of a uniform bank, are cut where the response stands above its mean and
-//! boosted where it falls below (equations (4)-(5) of the paper), within bounds; the next
-//! sweep measures the result. The weights run as the paper's filter bank or as a
+//! boosted where it falls below (equations (4)-(5) of the compensation paper), within bounds; the next
+//! sweep measures the result. The weights run as the compensation paper's filter bank or as a
 //! minimum-phase FIR with no bulk delay.
 //!
 //! | file | what |

@@ -1,11 +1,11 @@
 //! The static alternative: one least-squares inverse FIR, for comparison.
 //!
-//! The earlier design (the paper's reference \[1\]) fitted a short FIR once to the
+//! The earlier design (the compensation paper's reference \[1\]) fitted a short FIR once to the
 //! unloaded response. [`StaticInverse::fit`] fits an FIR `c` of a given order so that
 //! `C(f) H(f) ≈ g e^{-j 2π f d / fs}` over the band in the least-squares sense (with a
 //! modelling delay `d` of half the order and a small ridge), the classic least-squares
-//! inverse filter. At the paper's order 14 and 48 kHz it has no resolution in the band
-//! at all, which is the paper's point; it is kept for the comparison.
+//! inverse filter. At the compensation paper's order 14 and 48 kHz it has no resolution in the band
+//! at all, which is the compensation paper's point; it is kept for the comparison.
 
 use num_complex::Complex64;
 

@@ -40,7 +40,7 @@ impl<D: Device + ?Sized> Device for Equalized<'_, D> {
 pub struct PassReport {
     /// 1 for the first sweep (through flat weights).
     pub pass: usize,
-    /// RMS deviation from flat over the band (the paper's figure).
+    /// RMS deviation from flat over the band (the compensation paper's figure).
     pub deviation: Decibels,
     /// Largest deviation from flat at any measured frequency.
     pub peak: Decibels,

@@ -1,9 +1,9 @@
 //! The spectral weights and their update by successive sweeps.
 //!
-//! # The weight update (equations (4)-(5) of the paper)
+//! # The weight update (equations (4)-(5) of the compensation paper)
 //!
 //! A sweep through the equalized device gives the accelerometer magnitude `A` on a log
-//! grid of the band. The paper writes
+//! grid of the band. The compensation paper writes
 //!
 //! ```math
 //! a = A - \bar A, \qquad w_k = w_{k-1} \, \frac{\bar a}{a},
@@ -18,10 +18,10 @@
 //!   w_k(f) = w_{k-1}(f) \cdot 10^{-\mu\, a_{dB}(f) / 20},
 //! ```
 //!
-//! with a relaxation `μ` ([`EqualizerConfig::step`], 1 by default: the paper's update).
+//! with a relaxation `μ` ([`EqualizerConfig::step`], 1 by default: the compensation paper's update).
 //! If the realised filter applied `w` exactly and the device were linear and noiseless,
 //! one update would flatten the response; a second pass corrects what the first
-//! realisation and the measurement noise missed, which is what the paper's 15.3, 0.90,
+//! realisation and the measurement noise missed, which is what the compensation paper's 15.3, 0.90,
 //! 0.28 dB sequence shows.
 //!
 //! The weights live on the `N/2 + 1` bins of the equalizer's uniform bank (`fs/N` apart,

@@ -1,6 +1,6 @@
 //! The rheological model of the user's lower limb, its fit, and its inverse as a filter.
 //!
-//! # Model (equations (1)-(3) of the paper)
+//! # Model (equations (1)-(3) of the compensation paper)
 //!
 //! The leg with the elastomer suspension is a first-order low-pass, the skin with the shoe
 //! a resonant second-order high-pass, and the two act in parallel:
@@ -43,7 +43,7 @@ use crate::units::{Hz, Seconds};
 
 pub use fit::{LimbBounds, LimbFit, LimbFitConfig, fit_limb};
 
-/// The paper's sensor gain `g2` of the skin term.
+/// The compensation paper's sensor gain `g2` of the skin term.
 pub const DEFAULT_G2: f64 = 0.005;
 
 /// The three fitted parameters of the limb model.

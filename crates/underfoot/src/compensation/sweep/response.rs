@@ -1,7 +1,7 @@
 //! A measured response: complex values on a set of frequencies, and its flatness.
 //!
 //! [`FrequencyResponse::deviation_from_flat_db`] is the RMS over the log grid of the
-//! magnitude in dB minus its mean: the paper's "deviation from a flat response", zero for
+//! magnitude in dB minus its mean: the compensation paper's "deviation from a flat response", zero for
 //! a device that only scales.
 
 use num_complex::Complex64;

@@ -1,7 +1,7 @@
-//! The paper's crumpling measure and impact event rate (section 2.2).
+//! The tile paper's crumpling measure and impact event rate (section 2.2).
 //!
 //! **Measure.** The detail band `d_j` of a Daubechies decomposition (level `j = 2`, 6-12 kHz
-//! at 48 kHz, in the paper) isolates impact onsets. Each coefficient stands for `2^j`
+//! at 48 kHz, in the tile paper) isolates impact onsets. Each coefficient stands for `2^j`
 //! samples, so the band is brought back to the signal's time axis by holding each
 //! coefficient over its samples, `d(t) = d_j[⌊t / 2^j⌋]`. The crumpling measure is its
 //! local RMS under a Gaussian window,
@@ -18,7 +18,7 @@
 //! **Event rate.** After Cook's ansatz, the rate of impacts per second is
 //! `N(t) = e^{α I(t)} - 1` ([`event_rate`]).
 //!
-//! **Choosing α** ([`estimate_rate_scale`]). The paper leaves `α` free. Here it is fixed by
+//! **Choosing α** ([`estimate_rate_scale`]). The tile paper leaves `α` free. Here it is fixed by
 //! counting: the onsets of the same detail band are counted ([`impact_onsets`]), and `α`
 //! is the unique value for which the expected number of events equals that count,
 //!

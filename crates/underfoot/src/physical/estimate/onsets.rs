@@ -2,7 +2,7 @@
 //!
 //! **Impact onsets and the event rate** ([`super::crumpling`]). At the recording's
 //! rate, the Daubechies detail level whose band reaches closest to 12 kHz (level 2,
-//! 6-12 kHz at 48 kHz, as in the paper; level 1 at 22.05 kHz) isolates impact onsets.
+//! 6-12 kHz at 48 kHz, as in the tile paper; level 1 at 22.05 kHz) isolates impact onsets.
 //! They are counted in each strike window (`K` per strike), and the crumpling measure
 //! `I(t)` with the scale `a` of `N(t) = e^{a I(t)} - 1` is fitted so that the expected
 //! number of events equals the count (recorded as `rate_scale`).

@@ -1,11 +1,11 @@
-//! The event-based voice of the paper's Fig. 3: one material filter per channel, driven
+//! The event-based voice of the IIR paper's Fig. 3: one material filter per channel, driven
 //! by force, with new numerator coefficients at every step.
 //!
 //! The voice has two halves: a [`PreparedMaterial`] is a library model made ready for one
 //! audio rate, off the audio thread (modal form resampled, decays limited, residues
 //! re-solved, a post filter, one normalised gain per drive); a [`Voice`] copies its
 //! coefficients into fixed-size arrays and runs them on the audio thread, with new
-//! numerators at every step (the paper's equation 4).
+//! numerators at every step (the IIR paper's equation 4).
 //!
 //! | file | what |
 //! |---|---|

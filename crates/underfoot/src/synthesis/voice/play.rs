@@ -15,18 +15,18 @@
 //! at 48 kHz, where the direct-form `a1 = -2 r cos θ` of a 20 Hz mode would lose 2% of its
 //! frequency to rounding.
 //!
-//! # The perturbation (paper's equation 4)
+//! # The perturbation (the IIR paper's equation 4)
 //!
 //! At every new step each numerator coefficient is multiplied by `1 + σ n`,
 //! `n ~ N(0, 1)`, `σ = 0.01` by default, from a seeded generator: the poles, and so
 //! stability, never change, while the zeros move and every step sounds a little
-//! different. The paper perturbs the expanded numerator of the analysis-rate filter. At
+//! different. The IIR paper perturbs the expanded numerator of the analysis-rate filter. At
 //! the audio rate the numerator coefficients of a low mode nearly cancel
 //! (`b_0 + b_1 ≈ 0` when the pole angle θ is small), and a 1% change in each would
 //! change that mode's level by up to `1/θ`, about 200% for a 40 Hz mode at 48 kHz. We
 //! perturb the numerator of the modal form instead (the real and imaginary parts of each
 //! residue, and the direct term), whose 1% change moves each mode's level and phase by
-//! about 1%: the few-percent variation the paper describes. The residue multiplies the
+//! about 1%: the few-percent variation the IIR paper describes. The residue multiplies the
 //! input, not the state, so a new step's coefficients never change the ringing of the
 //! previous one: no discontinuity at the switch.
 

@@ -9,7 +9,7 @@
 //!
 //! # Post filter
 //!
-//! The paper adds a low-pass to remove the artefacts of fitting above the band (its
+//! The IIR paper adds a low-pass to remove the artefacts of fitting above the band (its
 //! 250-500 Hz peaks). Here it is a Butterworth low-pass at the top of the band (order
 //! 4 by default), and a second-order Butterworth high-pass at half the bottom of the band:
 //! the fit says nothing about the response below the band, and an actuator pressed on

@@ -19,8 +19,8 @@ const RATE: SampleRate = SampleRate(48_000);
 const SOURCE_BAND: Band = Band::new(30.0, 1500.0);
 
 /// A person on the tile: the plate modes pulled down and damped by the foot's mass and
-/// the sole (a soft sole's resonance rises into 400-600 Hz, as in the paper's Fig. 5),
-/// and a first-order low-pass at 600 Hz standing in for the leg (the paper's `H_l`,
+/// the sole (a soft sole's resonance rises into 400-600 Hz, as in the compensation paper's Fig. 5),
+/// and a first-order low-pass at 600 Hz standing in for the leg (the compensation paper's `H_l`,
 /// equation (1), with a corner inside the band so there is something to correct).
 struct LoadedPlant {
     tile: SimulatedTile,

@@ -93,7 +93,7 @@ fn static_inverse_fir_for_comparison() {
             "static inverse order {order}: {raw:.2} -> {:.2} dB rms, {:.2} peak",
             rms.0, peak.0
         );
-        // The paper's order has no resolution at 48 kHz; a long one works, with a delay.
+        // The compensation paper's order has no resolution at 48 kHz; a long one works, with a delay.
         match order {
             14 => assert!(rms.0 > 0.9 * raw),
             2048 => assert!(rms.0 < 0.5 && inverse.delay == 1024),

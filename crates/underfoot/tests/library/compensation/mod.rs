@@ -100,7 +100,7 @@ fn a_session_compensates_simulated_users() {
         assert!((g / t - 1.0).abs() < 0.05, "fitted {got:?} for {anna:?}");
     }
 
-    // The engine's cascade (the paper's Fig. 3): equalizer, then her Z_c.
+    // The engine's cascade (the compensation paper's Fig. 3): equalizer, then her Z_c.
     let compensated = Compensation {
         equalizer: device_only.equalizer.clone(),
         limb: Some(fit.model.compensation(RATE, BAND).unwrap()),
