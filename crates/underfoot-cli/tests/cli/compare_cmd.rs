@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use crate::common::{assert_error, assert_ok, footsteps_dir, run, s, stdout};
 
 #[test]
+#[ignore = "slow tier: real recordings"]
 fn compare_prints_table_one_for_the_papers_five_materials() {
     let Some(data) = footsteps_dir() else {
         return;
@@ -66,6 +67,7 @@ fn compare_prints_table_one_for_the_papers_five_materials() {
 /// `fit` and `compare` on the same recordings print the same figures for the same
 /// metric, and `compare`'s held-out figure is named apart from the calibration's.
 #[test]
+#[ignore = "slow tier: real recordings"]
 fn fit_and_compare_agree_on_the_same_recordings() {
     let Some(data) = footsteps_dir() else {
         return;

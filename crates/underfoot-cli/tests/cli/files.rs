@@ -357,6 +357,7 @@ fn five_concurrent_fits_into_one_library_all_land() {
 }
 
 #[test]
+#[ignore = "slow tier: paced in real time"]
 fn a_killed_live_recording_is_a_valid_wav_on_disk() {
     let dir = tempfile::tempdir().expect("tempdir");
     let wav = dir.path().join("live.wav");

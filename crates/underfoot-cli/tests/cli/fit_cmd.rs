@@ -427,6 +427,7 @@ fn accept_poor_fit_keeps_it_marked() {
 /// `fit --report` on gravel's three recordings prints the leave-one-recording-out table
 /// and writes it into the report; with one recording it says why there is none.
 #[test]
+#[ignore = "slow tier: real recordings"]
 fn fit_report_gives_leave_one_out_on_gravel() {
     let Some(data) = footsteps_dir() else {
         return;

@@ -68,6 +68,7 @@ fn steps(y: &[f32]) -> Vec<(usize, f64)> {
 }
 
 #[test]
+#[ignore = "slow tier: paced in real time"]
 fn run_plays_the_walk_as_render_does_for_buffers_16_to_1024() {
     let dir = tempfile::tempdir().expect("tempdir");
     let offline_path = dir.path().join("offline.wav");
@@ -151,6 +152,7 @@ fn run_plays_the_walk_as_render_does_for_buffers_16_to_1024() {
 }
 
 #[test]
+#[ignore = "slow tier: paced in real time"]
 fn run_to_null_strikes_and_peaks_as_render_does() {
     let dir = tempfile::tempdir().expect("tempdir");
     let out = dir.path().join("offline.wav");

@@ -5,6 +5,7 @@ use std::fs;
 use crate::common::{assert_error, assert_ok, read_wav, run, s, stdout};
 
 #[test]
+#[ignore = "slow tier: long renders"]
 fn render_of_a_generated_walk_is_reproducible_and_carries_the_force() {
     let dir = tempfile::tempdir().expect("tempdir");
     let render = |out: &str, seed: &str| {

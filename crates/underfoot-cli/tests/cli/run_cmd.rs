@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use crate::common::{assert_error, assert_ok, read_wav, run, s, stderr, stdout};
 
 #[test]
+#[ignore = "slow tier: paced in real time"]
 fn run_plays_a_walk_live_into_a_paced_wav() {
     let dir = tempfile::tempdir().expect("tempdir");
     let wav = dir.path().join("live.wav");
@@ -80,6 +81,7 @@ fn count_before(text: &str, what: &str) -> u64 {
 }
 
 #[test]
+#[ignore = "slow tier: paced in real time"]
 fn run_interface_plays_the_simulated_foot_and_drives_its_servos() {
     let dir = tempfile::tempdir().expect("tempdir");
     // The example, with a shorter walk.

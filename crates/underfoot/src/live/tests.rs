@@ -69,6 +69,7 @@ fn paced(report: &OutputReport) -> &PacedReport {
 }
 
 #[test]
+#[ignore = "slow tier: paced in real time"]
 fn a_walk_plays_out_into_nothing() {
     let config = SessionConfig::new(walk(1), OutputSpec::Null);
     let session = Session::open(&config).unwrap();
@@ -86,6 +87,7 @@ fn a_walk_plays_out_into_nothing() {
 }
 
 #[test]
+#[ignore = "slow tier: paced in real time"]
 fn a_walk_is_recorded_into_a_wav_file() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("live.wav");

@@ -74,6 +74,7 @@ fn builtin_library_covers_the_papers_materials() {
 }
 
 #[test]
+#[ignore = "slow tier: real recordings"]
 fn builtin_library_is_current() {
     let Some(root) = common::footsteps_dir() else {
         return;

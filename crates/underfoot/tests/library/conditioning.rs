@@ -243,6 +243,7 @@ fn a_tight_synthetic_strike_has_no_invented_low_end() {
 }
 
 #[test]
+#[ignore = "slow tier: real recordings"]
 fn every_shared_material_measures_the_same_however_cut() {
     let Some(root) = common::footsteps_dir() else {
         return;
@@ -262,6 +263,7 @@ fn every_shared_material_measures_the_same_however_cut() {
 }
 
 #[test]
+#[ignore = "slow tier: real recordings"]
 fn shared_materials_stay_close_to_their_raw_spectra() {
     let Some(root) = common::footsteps_dir() else {
         return;

@@ -113,6 +113,7 @@ fn render_model(
 }
 
 #[test]
+#[ignore = "slow tier: long renders"]
 fn output_is_identical_for_blocks_of_1_7_64_and_512_frames() {
     for drive in ["impulse", "force", "force-rate"] {
         let config = EngineConfig {
@@ -133,6 +134,7 @@ fn output_is_identical_for_blocks_of_1_7_64_and_512_frames() {
 }
 
 #[test]
+#[ignore = "slow tier: long renders"]
 fn the_physical_model_is_block_size_invariant_too() {
     // An aggregate (gravel: micro-impacts at a rate following the loading) and a solid
     // (hard: one impact per strike), with a material switch between them mid-walk.

@@ -204,6 +204,7 @@ fn drive(n: usize, seed: u64) -> Vec<f64> {
 }
 
 #[test]
+#[ignore = "slow tier: compiles C"]
 fn exported_c_matches_rust_for_every_builtin_material() {
     let Some(cc) = compiler() else { return };
     let library = builtin();

@@ -17,6 +17,7 @@ use underfoot::signal::noise::SplitMix64;
 use underfoot::units::{SampleRate, Seconds};
 
 #[test]
+#[ignore = "slow tier: real recordings"]
 fn calibrate_then_synthesise_every_real_material_within_3_db() {
     let Some(root) = common::footsteps_dir() else {
         return;

@@ -24,6 +24,7 @@ fn recordings(files: &[std::path::PathBuf]) -> Vec<Recording> {
 /// Every shared recording passes the recording checks with room to spare, and no
 /// material's recordings disagree beyond the warning threshold.
 #[test]
+#[ignore = "slow tier: real recordings"]
 fn every_shared_recording_passes_the_gate() {
     let Some(root) = common::footsteps_dir() else {
         return;
@@ -62,6 +63,7 @@ fn every_shared_recording_passes_the_gate() {
 
 /// White noise as loud as each recording's peak, at its rate and length, is refused.
 #[test]
+#[ignore = "slow tier: real recordings"]
 fn noise_from_the_shared_recordings_is_refused() {
     let Some(root) = common::footsteps_dir() else {
         return;
@@ -89,6 +91,7 @@ fn noise_from_the_shared_recordings_is_refused() {
 /// in-sample distance is no larger than the left-out one on average, and both are of the
 /// order of a dB or a few (not tens: the recordings are of one ground).
 #[test]
+#[ignore = "slow tier: real recordings"]
 fn leave_one_out_on_gravel() {
     let Some(root) = common::footsteps_dir() else {
         return;

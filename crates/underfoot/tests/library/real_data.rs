@@ -24,6 +24,7 @@ use underfoot::units::SampleRate;
 const PAPER: [&str; 5] = ["gravel", "hard", "sand", "dirt", "snow"];
 
 #[test]
+#[ignore = "slow tier: real recordings"]
 fn every_real_material_fits_within_one_db() {
     let Some(root) = common::footsteps_dir() else {
         return;

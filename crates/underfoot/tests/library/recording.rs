@@ -656,6 +656,7 @@ fn wav_declaring_zero_hz_is_rejected() {
 // ---------------------------------------------------------------- real recordings
 
 #[test]
+#[ignore = "slow tier: real recordings"]
 fn real_footsteps_decode_and_each_has_an_onset() {
     let Some(dir) = common::footsteps_dir() else {
         return;
@@ -684,6 +685,7 @@ fn real_footsteps_decode_and_each_has_an_onset() {
 }
 
 #[test]
+#[ignore = "slow tier: real recordings"]
 fn real_ogg_cut_short_errors_or_decodes_shorter_never_panics() {
     let Some(dir) = common::footsteps_dir() else {
         return;

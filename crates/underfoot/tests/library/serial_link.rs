@@ -197,6 +197,7 @@ sensors = ["heel"]
 
 /// On main, the interface host spun like the serial source (87% of a core).
 #[test]
+#[ignore = "slow tier: paced in real time"]
 fn a_hung_up_interface_port_is_waited_on_and_reopened() {
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("ttyIF");
@@ -248,6 +249,7 @@ fn a_hung_up_interface_port_is_waited_on_and_reopened() {
 /// stays under two periods (the firmware's 200 ms timeout). On main the frames were
 /// written by the poll and stopped with it (up to 1.04 s under load).
 #[test]
+#[ignore = "slow tier: paced in real time"]
 fn the_servo_heartbeat_keeps_its_period_when_the_poll_loop_stalls() {
     let dir = tempfile::tempdir().unwrap();
     let link = dir.path().join("ttyHB");

@@ -310,6 +310,7 @@ fn servos_return_to_rest_when_the_insole_stops() {
 /// rest after the walk.
 #[cfg(unix)]
 #[test]
+#[ignore = "slow tier: paced in real time"]
 fn simulated_walk_drives_servos_heel_to_toe() {
     let config = sim_config(
         100,

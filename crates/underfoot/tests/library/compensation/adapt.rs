@@ -129,6 +129,7 @@ fn gait(t: f64) -> (f64, f64) {
 }
 
 #[test]
+#[ignore = "slow tier: refits"]
 fn converges_on_a_simulated_user_and_stays() {
     let (at, last) = walk(None);
     // Twice the frame halves the Hann lobe: slower to average, flatter in the end.
