@@ -20,7 +20,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use underfoot::analysis::SavgolSetting;
 use underfoot::analysis::{MAX_ANALYSIS_RATE, MIN_ANALYSIS_RATE};
 use underfoot::atomic_file::OutputFile;
-use underfoot::fit::{MAX_ORDER, OrderChoice};
+use underfoot::fit::{MAX_FILTER_ORDER, OrderChoice};
 use underfoot::io::spec::{self, SpecError};
 use underfoot::material::Library;
 use underfoot::material::build::{BuildConfig, BuildError, Progress, build_material};
@@ -139,7 +139,7 @@ fn parse_decay(s: &str) -> Result<f64, String> {
 }
 
 fn parse_order(s: &str) -> Result<usize, SpecError> {
-    spec::parse_count(s, "filter order", 1, MAX_ORDER)
+    spec::parse_count(s, "filter order", 1, MAX_FILTER_ORDER)
 }
 
 fn parse_positive(s: &str) -> Result<f64, String> {

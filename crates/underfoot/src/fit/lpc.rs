@@ -87,7 +87,7 @@ use num_complex::Complex64;
 use crate::units::{Band, Hz, SampleRate, Seconds};
 
 /// The largest prediction order accepted.
-pub const MAX_ORDER: usize = 128;
+pub const MAX_PREDICTOR_ORDER: usize = 128;
 
 /// Singular values below this fraction of the largest carry no information at the order
 /// asked for (a noiseless signal with fewer modes than `order / 2`); they are dropped so the
@@ -98,8 +98,8 @@ const SVD_TOLERANCE: f64 = 1e-10;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum LpcError {
-    /// The order is zero or above [`MAX_ORDER`].
-    #[error("prediction order {order} is out of range (1..={MAX_ORDER})")]
+    /// The order is zero or above [`MAX_PREDICTOR_ORDER`].
+    #[error("prediction order {order} is out of range (1..={MAX_PREDICTOR_ORDER})")]
     InvalidOrder {
         /// The order asked for.
         order: usize,
@@ -183,7 +183,7 @@ pub struct LpcMode {
 
 /// Checks that `x` is usable for an order-`order` analysis needing `needed` samples.
 fn check(x: &[f64], order: usize, needed: usize) -> Result<(), LpcError> {
-    if order == 0 || order > MAX_ORDER {
+    if order == 0 || order > MAX_PREDICTOR_ORDER {
         return Err(LpcError::InvalidOrder { order });
     }
     if x.len() < needed {
@@ -218,7 +218,7 @@ pub fn autocorrelation(x: &[f64], max_lag: usize) -> Result<Vec<f64>, LpcError> 
 /// The Levinson-Durbin recursion on the autocorrelation `r[0..=order]`.
 ///
 /// # Errors
-/// [`LpcError::InvalidOrder`] for order 0 or above [`MAX_ORDER`]; [`LpcError::TooShort`]
+/// [`LpcError::InvalidOrder`] for order 0 or above [`MAX_PREDICTOR_ORDER`]; [`LpcError::TooShort`]
 /// when `r` has fewer than `order + 1` lags; [`LpcError::NonFinite`] or
 /// [`LpcError::Silent`] for a bad `r`; [`LpcError::IllConditioned`] when a reflection
 /// coefficient reaches modulus 1 (or the error power stops being positive).

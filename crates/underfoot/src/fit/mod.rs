@@ -92,7 +92,7 @@ pub fn decay_time(rate: SampleRate, radius: f64) -> Seconds {
 }
 
 /// The largest order a fit accepts.
-pub const MAX_ORDER: usize = 64;
+pub const MAX_FILTER_ORDER: usize = 64;
 
 /// How the filter order is chosen.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -145,7 +145,7 @@ pub enum FitError {
     #[error("cannot fit this response: {0}")]
     BadTarget(&'static str),
     /// The order is out of range.
-    #[error("filter order {order} is out of range (1..={MAX_ORDER})")]
+    #[error("filter order {order} is out of range (1..={MAX_FILTER_ORDER})")]
     InvalidOrder {
         /// The order asked for.
         order: usize,
@@ -215,7 +215,7 @@ fn balanced(target: &Target, cfg: &FitConfig) -> Objective {
 /// keeping the candidate closest to the targets.
 ///
 /// # Errors
-/// [`FitError::InvalidOrder`] for order 0 or above [`MAX_ORDER`]; [`FitError::NoFit`] when
+/// [`FitError::InvalidOrder`] for order 0 or above [`MAX_FILTER_ORDER`]; [`FitError::NoFit`] when
 /// no start yields a stable finite filter.
 pub fn fit_order(
     target: &Target,
@@ -223,7 +223,7 @@ pub fn fit_order(
     order: usize,
     cfg: &FitConfig,
 ) -> Result<OrderFit, FitError> {
-    if order == 0 || order > MAX_ORDER {
+    if order == 0 || order > MAX_FILTER_ORDER {
         return Err(FitError::InvalidOrder { order });
     }
     let levi_ba = levi::levi(target, order, order, None).ok();
@@ -379,7 +379,7 @@ pub fn fit(
                 None => Err(last_err.unwrap_or(FitError::NoFit { order: n })),
             };
         }
-        OrderChoice::Auto { max } if max == 0 || max > MAX_ORDER => {
+        OrderChoice::Auto { max } if max == 0 || max > MAX_FILTER_ORDER => {
             return Err(FitError::InvalidOrder { order: max });
         }
         OrderChoice::Auto { max } => max,

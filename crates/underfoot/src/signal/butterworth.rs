@@ -70,7 +70,7 @@ use super::sos::{Biquad, Sos};
 use crate::units::{Band, Hz, SampleRate};
 
 /// The highest prototype order accepted.
-pub const MAX_ORDER: usize = 20;
+pub const MAX_BUTTERWORTH_ORDER: usize = 20;
 
 /// A Butterworth low-pass filter of order `order` with its -3.01 dB point at `cutoff`.
 ///
@@ -180,11 +180,11 @@ pub fn bandpass(order: usize, band: Band, rate: SampleRate) -> Result<Sos, Signa
 }
 
 fn check_order(order: usize) -> Result<(), SignalError> {
-    if (1..=MAX_ORDER).contains(&order) {
+    if (1..=MAX_BUTTERWORTH_ORDER).contains(&order) {
         Ok(())
     } else {
         Err(SignalError::InvalidParameter(format!(
-            "Butterworth order {order} is outside 1..={MAX_ORDER}"
+            "Butterworth order {order} is outside 1..={MAX_BUTTERWORTH_ORDER}"
         )))
     }
 }
@@ -261,7 +261,7 @@ mod tests {
     #[test]
     fn lowpass_matches_closed_form() {
         let rate = SampleRate(2000);
-        for order in 1..=MAX_ORDER {
+        for order in 1..=MAX_BUTTERWORTH_ORDER {
             for fc in [5.0, 100.0, 333.0, 900.0, 990.0] {
                 let sos = lowpass(order, Hz(fc), rate).unwrap();
                 assert_eq!(sos.order(), order);
@@ -286,7 +286,7 @@ mod tests {
     #[test]
     fn highpass_matches_closed_form() {
         let rate = SampleRate(48_000);
-        for order in 1..=MAX_ORDER {
+        for order in 1..=MAX_BUTTERWORTH_ORDER {
             for fc in [20.0, 440.0, 12_000.0, 23_000.0] {
                 let sos = highpass(order, Hz(fc), rate).unwrap();
                 assert_eq!(sos.order(), order);
@@ -325,7 +325,7 @@ mod tests {
             (SampleRate(48_000), Band::new(1000.0, 1010.0)),
         ];
         for (rate, band) in cases {
-            for order in 1..=MAX_ORDER {
+            for order in 1..=MAX_BUTTERWORTH_ORDER {
                 let sos = bandpass(order, band, rate).unwrap();
                 assert_eq!(sos.order(), 2 * order);
                 assert_eq!(sos.sections.len(), order);

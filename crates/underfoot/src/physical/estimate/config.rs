@@ -106,7 +106,7 @@ pub(super) fn check(cfg: &EstimateConfig) -> Result<(), EstimateError> {
         || cfg
             .lpc_orders
             .iter()
-            .any(|&p| !(2..=crate::fit::lpc::MAX_ORDER).contains(&p))
+            .any(|&p| !(2..=crate::fit::lpc::MAX_PREDICTOR_ORDER).contains(&p))
     {
         return Err(EstimateError::InvalidSetting(
             "lpc_orders must be a non-empty list of orders from 2 to 128",
