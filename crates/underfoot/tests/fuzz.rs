@@ -209,16 +209,16 @@ impl Watchdog {
             while !d.load(Ordering::Relaxed) {
                 std::thread::sleep(Duration::from_millis(200));
                 let guard = c.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-                if let Some((since, data)) = guard.as_ref() {
-                    if since.elapsed() > HANG_LIMIT {
-                        let path = save_finding(target, data);
-                        eprintln!(
-                            "fuzz {target}: an input has run for {HANG_LIMIT:?} (a hang); \
+                if let Some((since, data)) = guard.as_ref()
+                    && since.elapsed() > HANG_LIMIT
+                {
+                    let path = save_finding(target, data);
+                    eprintln!(
+                        "fuzz {target}: an input has run for {HANG_LIMIT:?} (a hang); \
                              saved as {}",
-                            path.display()
-                        );
-                        std::process::exit(101);
-                    }
+                        path.display()
+                    );
+                    std::process::exit(101);
                 }
             }
         });

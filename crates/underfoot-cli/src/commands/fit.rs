@@ -121,7 +121,7 @@ fn parse_savgol(s: &str) -> Result<SavgolSetting, String> {
              most {MAX_SAVGOL_ORDER}"
         ));
     }
-    if window % 2 == 0 || polyorder >= window {
+    if window.is_multiple_of(2) || polyorder >= window {
         return Err(format!(
             "savgol {s:?}: the window must be odd and larger than the polynomial order"
         ));

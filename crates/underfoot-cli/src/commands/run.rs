@@ -36,20 +36,19 @@ use crate::output::emit;
 #[derive(Debug, Args)]
 pub struct RunArgs {
     /// Where force comes from: replay:FILE.csv[@SPEED], gait:SPEC, serial:PORT, osc:HOST:PORT.
-    #[arg(
-        long,
-        value_name = "SOURCE",
-        required_unless_present_any = ["interface", "list_devices"],
-        conflicts_with = "interface"
-    )]
+    /// Default (no --input, no --interface): a generated walk, `gait:steps=4`, said so on
+    /// stderr.
+    #[arg(long, value_name = "SOURCE", conflicts_with = "interface")]
     input: Option<InputArg>,
     /// A prosthetic-skin interface (prosthetic.toml): insole force in, servo targets out,
     /// one vibration channel per [[channel]]. Replaces --input.
     #[arg(long, value_name = "FILE.toml")]
     interface: Option<PathBuf>,
-    /// Where vibration goes: audio[:DEVICE], wav:FILE.wav, or null.
-    #[arg(long, default_value = "audio", value_name = "SINK")]
-    output: OutputSpec,
+    /// Where vibration goes: audio[:DEVICE], wav:FILE.wav, or null (paced in real time,
+    /// counted, not heard). Default: audio when this build has it (`--features audio`),
+    /// else null, said so on stderr.
+    #[arg(long, value_name = "SINK")]
+    output: Option<OutputSpec>,
     /// Material of each channel, comma-separated (default: the library's first).
     #[arg(long, value_name = "NAME[,NAME...]", value_delimiter = ',')]
     material: Vec<String>,
@@ -156,13 +155,50 @@ fn parse_buffer(s: &str) -> Result<u32, SpecError> {
     spec::parse_count(s, "buffer", 16, 8192).map(|n| n as u32)
 }
 
+/// The input of a bare `underfoot run`: a short generated walk, so that the command does
+/// something a newcomer can see (and hear, with audio) without hardware.
+const DEFAULT_INPUT: &str = "gait:steps=4";
+
 impl RunArgs {
+    /// `--output`, or the default: the sound card when this build can play to one, else
+    /// `null`, the paced pseudo-device. Never an error: the default build has no audio
+    /// (it needs the ALSA headers), and a bare `run` should still run.
+    fn output(&self) -> OutputSpec {
+        self.output.clone().unwrap_or(if cfg!(feature = "audio") {
+            OutputSpec::Audio { device: None }
+        } else {
+            OutputSpec::Null
+        })
+    }
+
+    /// What was chosen for the user, to say on stderr: the defaults of a bare `run`.
+    fn defaults_taken(&self) -> Vec<String> {
+        let mut said = Vec::new();
+        if self.input.is_none() && self.interface.is_none() && !self.list_devices {
+            said.push(format!(
+                "no --input: a generated walk ({DEFAULT_INPUT}); give --input for real force \
+                 (replay:FILE.csv, serial:PORT, osc:HOST:PORT)"
+            ));
+        }
+        if self.output.is_none() {
+            said.push(if cfg!(feature = "audio") {
+                "no --output: the default audio device".to_owned()
+            } else {
+                "no --output, and this build has no audio (rebuild with `--features audio`): \
+                 playing to null, paced in real time and counted but not heard; \
+                 --output wav:FILE.wav to keep it"
+                    .to_owned()
+            });
+        }
+        said
+    }
+
     /// The session these arguments ask for.
     fn session(&self) -> anyhow::Result<SessionConfig> {
         let input = match (&self.interface, &self.input) {
             (Some(path), _) => SessionInput::Interface(path.clone()),
             (None, Some(input)) => SessionInput::Spec(input.spec.clone()),
-            (None, None) => bail!("--input or --interface is needed"),
+            (None, None) => SessionInput::Spec(DEFAULT_INPUT.parse()?),
         };
         let mut reads = self.synth.input_files();
         reads.extend(self.input.as_ref().and_then(InputArg::other_reading));
@@ -178,7 +214,7 @@ impl RunArgs {
             duration: self.duration.map(Seconds),
             exit_on_disconnect: self.exit_on_disconnect,
             reads,
-            ..SessionConfig::new(input, self.output.clone())
+            ..SessionConfig::new(input, self.output())
         })
     }
 }
@@ -187,6 +223,9 @@ impl RunArgs {
 pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     if args.list_devices {
         return list_devices(&args.host);
+    }
+    for line in args.defaults_taken() {
+        eprintln!("underfoot: {line}");
     }
     let session = Session::open(&args.session()?)?;
     if let (Some(path), Some(config)) = (&args.interface, session.interface()) {

@@ -174,3 +174,28 @@ fn run_interface_refuses_a_broken_config_clearly() {
     ]));
     assert!(err.contains("sensors.json"), "{err}");
 }
+
+/// A bare `underfoot run` runs on the default build (issue 16): a generated walk, to the
+/// sound card when the build has one, else to the paced null output, and it says which.
+#[test]
+#[ignore = "slow tier: paced in real time"]
+fn a_bare_run_plays_a_generated_walk_and_says_what_it_chose() {
+    let o = run(&["run"]);
+    assert_ok(&o);
+    let err = stderr(&o);
+    assert!(
+        err.contains("no --input: a generated walk (gait:steps=4)"),
+        "{err}"
+    );
+    if cfg!(feature = "audio") {
+        assert!(
+            err.contains("no --output: the default audio device"),
+            "{err}"
+        );
+    } else {
+        assert!(err.contains("this build has no audio"), "{err}");
+        assert!(err.contains("paced output null"), "{err}");
+        // Four steps a foot, two feet.
+        assert!(stdout(&o).contains("8 strike(s)"), "{}", stdout(&o));
+    }
+}

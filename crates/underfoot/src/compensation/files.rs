@@ -194,14 +194,14 @@ impl Document for EqualizerFile {
 
     fn validate(&self) -> Result<(), CompensationError> {
         self.weights.validate()?;
-        if let Realisation::LowDelay { taps } = self.realisation {
-            if taps == 0 || taps > 1 << 16 {
-                return Err(CompensationError::InvalidParameter {
-                    name: "realisation.taps",
-                    value: taps as f64,
-                    expected: "1 to 65536",
-                });
-            }
+        if let Realisation::LowDelay { taps } = self.realisation
+            && (taps == 0 || taps > 1 << 16)
+        {
+            return Err(CompensationError::InvalidParameter {
+                name: "realisation.taps",
+                value: taps as f64,
+                expected: "1 to 65536",
+            });
         }
         Ok(())
     }

@@ -351,10 +351,10 @@ pub fn modes_with(
     band: Option<Band>,
     method: Method,
 ) -> Result<Vec<LpcMode>, LpcError> {
-    if let Some(b) = band {
-        if !b.fits(rate) {
-            return Err(LpcError::BandOutOfRange { band: b, rate });
-        }
+    if let Some(b) = band
+        && !b.fits(rate)
+    {
+        return Err(LpcError::BandOutOfRange { band: b, rate });
     }
     let roots = match method {
         Method::MinimumNorm => minimum_norm_poles(signal, order)?,

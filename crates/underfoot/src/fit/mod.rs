@@ -233,18 +233,17 @@ pub fn fit_order(
 
     let rho = decay_radius(target.rate, cfg.longest_decay);
     let mut starts: Vec<(&'static str, Sos)> = Vec::new();
-    if let Some((b, a)) = &levi_ba {
-        if let Some(s) = crate::signal::zpk::ba_to_sos(b, a) {
-            starts.push(("levi", stabilise(&s, rho)));
-        }
+    if let Some((b, a)) = &levi_ba
+        && let Some(s) = crate::signal::zpk::ba_to_sos(b, a)
+    {
+        starts.push(("levi", stabilise(&s, rho)));
     }
     if let Some(Ok((b, a))) = levi_ba
         .clone()
         .map(|start| levi::sanathanan_koerner(target, start, 3))
+        && let Some(s) = crate::signal::zpk::ba_to_sos(&b, &a)
     {
-        if let Some(s) = crate::signal::zpk::ba_to_sos(&b, &a) {
-            starts.push(("sanathanan-koerner", stabilise(&s, rho)));
-        }
+        starts.push(("sanathanan-koerner", stabilise(&s, rho)));
     }
     if let Ok(s) = vector_fit::vector_fit(target, order, 6) {
         starts.push(("vector-fit", stabilise(&s, rho)));
@@ -407,10 +406,11 @@ pub fn fit(
             _ => lo = mid,
         }
     }
-    if hi > 1 && hi - 1 > lo {
-        if let Some(f) = run(hi - 1, &mut trials).filter(|f| reached(f)) {
-            chosen = f;
-        }
+    if hi > 1
+        && hi - 1 > lo
+        && let Some(f) = run(hi - 1, &mut trials).filter(|f| reached(f))
+    {
+        chosen = f;
     }
     trials.sort_by_key(|t| t.0);
     Ok(FitOutcome {

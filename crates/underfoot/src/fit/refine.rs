@@ -220,10 +220,10 @@ fn evaluate(
     let np = layout.len();
     let per = rows_per(objective);
     let mut r = Vec::with_capacity(per * target.len());
-    if let Some(j) = jac.as_deref_mut() {
-        if j.shape() != (np, per * target.len()) {
-            *j = DMatrix::zeros(np, per * target.len());
-        }
+    if let Some(j) = jac.as_deref_mut()
+        && j.shape() != (np, per * target.len())
+    {
+        *j = DMatrix::zeros(np, per * target.len());
     }
     let mut dlog = vec![Complex64::new(0.0, 0.0); np];
     let one = Complex64::new(1.0, 0.0);

@@ -40,10 +40,10 @@ pub(super) fn run_compensation_json(data: &[u8]) {
     let _ = document::from_json::<ResponseFile>(&text, origin).map(|r| r.response());
     let _ = document::from_json::<EqualizerFile>(&text, origin);
     let _ = document::from_json::<LimbFile>(&text, origin);
-    if let Ok(table) = document::from_json::<UserTable>(&text, origin) {
-        if let Some(first) = table.entries.first() {
-            let _ = table.interpolate(&first.params);
-        }
+    if let Ok(table) = document::from_json::<UserTable>(&text, origin)
+        && let Some(first) = table.entries.first()
+    {
+        let _ = table.interpolate(&first.params);
     }
 }
 

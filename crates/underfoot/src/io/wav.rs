@@ -258,7 +258,7 @@ impl WavSink {
             device: self.path.display().to_string(),
             reason,
         };
-        if samples.len() % usize::from(self.channels) != 0 {
+        if !samples.len().is_multiple_of(usize::from(self.channels)) {
             return Err(unsupported(format!(
                 "{} samples are not a whole number of {}-channel frames",
                 samples.len(),

@@ -13,7 +13,7 @@ pub fn median(x: &mut [f64]) -> f64 {
     }
     x.sort_by(f64::total_cmp);
     let m = x.len() / 2;
-    if x.len() % 2 == 0 {
+    if x.len().is_multiple_of(2) {
         0.5 * (x[m - 1] + x[m])
     } else {
         x[m]

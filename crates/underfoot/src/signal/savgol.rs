@@ -52,7 +52,7 @@ impl SavitzkyGolay {
     /// # Errors
     /// [`SignalError::InvalidParameter`] if `window` is even or zero, or `polyorder >= window`.
     pub fn new(window: usize, polyorder: usize) -> Result<Self, SignalError> {
-        if window % 2 == 0 {
+        if window.is_multiple_of(2) {
             return Err(SignalError::InvalidParameter(format!(
                 "Savitzky-Golay window must be odd and positive, got {window}"
             )));

@@ -191,10 +191,10 @@ impl SimulatedTile {
         if !pos(cfg.gain) {
             return Err(CompensationError::invalid("gain", cfg.gain, "finite, > 0"));
         }
-        if let Some(n) = cfg.noise {
-            if !n.0.is_finite() {
-                return Err(CompensationError::invalid("noise", n.0, "finite dB"));
-            }
+        if let Some(n) = cfg.noise
+            && !n.0.is_finite()
+        {
+            return Err(CompensationError::invalid("noise", n.0, "finite dB"));
         }
         let sos = Sos::new(sections);
         let state = vec![[0.0; 2]; sos.sections.len()];
@@ -230,13 +230,13 @@ impl SimulatedTile {
     pub fn process(&mut self, input: &[f64]) -> Vec<f64> {
         let mut out: Vec<f64> = input.iter().map(|v| v * self.gain).collect();
         self.sos.filter_with_state(&mut out, &mut self.state);
-        if let Some(level) = self.noise {
-            if !out.is_empty() {
-                let rms = (out.iter().map(|v| v * v).sum::<f64>() / out.len() as f64).sqrt();
-                let sigma = rms * level.to_amplitude();
-                for v in &mut out {
-                    *v += sigma * self.rng.normal();
-                }
+        if let Some(level) = self.noise
+            && !out.is_empty()
+        {
+            let rms = (out.iter().map(|v| v * v).sum::<f64>() / out.len() as f64).sqrt();
+            let sigma = rms * level.to_amplitude();
+            for v in &mut out {
+                *v += sigma * self.rng.normal();
             }
         }
         out

@@ -233,7 +233,7 @@ impl Bits {
     }
     fn put(&mut self, value: u64, width: usize) {
         for k in (0..width).rev() {
-            if self.nbits % 8 == 0 {
+            if self.nbits.is_multiple_of(8) {
                 self.bytes.push(0);
             }
             if (value >> k) & 1 == 1 {

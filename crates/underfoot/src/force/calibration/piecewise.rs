@@ -57,23 +57,23 @@ pub(super) fn fit_piecewise(raw: &[f64], load: &[f64]) -> Vec<[f64; 2]> {
     // never below the lightest load.
     let (r_lo, r_hi) = min_max(raw);
     let (l_lo, _) = min_max(load);
-    if let [first, second, ..] = knots[..] {
-        if r_lo < first[0] {
-            let slope = (second[1] - first[1]) / (second[0] - first[0]);
-            knots.insert(
-                0,
-                [
-                    r_lo,
-                    (first[1] - slope * (first[0] - r_lo)).max(l_lo.min(first[1])),
-                ],
-            );
-        }
+    if let [first, second, ..] = knots[..]
+        && r_lo < first[0]
+    {
+        let slope = (second[1] - first[1]) / (second[0] - first[0]);
+        knots.insert(
+            0,
+            [
+                r_lo,
+                (first[1] - slope * (first[0] - r_lo)).max(l_lo.min(first[1])),
+            ],
+        );
     }
-    if let [.., before, last] = knots[..] {
-        if r_hi > last[0] {
-            let slope = (last[1] - before[1]) / (last[0] - before[0]);
-            knots.push([r_hi, last[1] + slope * (r_hi - last[0])]);
-        }
+    if let [.., before, last] = knots[..]
+        && r_hi > last[0]
+    {
+        let slope = (last[1] - before[1]) / (last[0] - before[0]);
+        knots.push([r_hi, last[1] + slope * (r_hi - last[0])]);
     }
     // Clamping at the lightest load can tie the first two knots' forces; keep the knot
     // sequence strictly increasing in reading and non-decreasing in force.

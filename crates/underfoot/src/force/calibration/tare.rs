@@ -47,7 +47,7 @@ impl SensorCalibration {
     /// count, or a sensor has no finite rest reading.
     pub fn tare(&mut self, readings_at_rest: &[f32]) -> Result<Vec<f64>, SensorCalibrationError> {
         let n = self.sensors.len();
-        if n == 0 || readings_at_rest.is_empty() || readings_at_rest.len() % n != 0 {
+        if n == 0 || readings_at_rest.is_empty() || !readings_at_rest.len().is_multiple_of(n) {
             return Err(SensorCalibrationError::Tare {
                 reason: format!(
                     "{} rest readings are not whole rows of {n} sensors",

@@ -71,10 +71,11 @@ pub(super) fn inconsistent(origin: &str, reason: String) -> TrackError {
 
 /// The sensor column names (without `time_s`) a track with these channels is written with.
 pub(super) fn column_names(channels: &[ChannelSensors]) -> Vec<String> {
-    if let [only] = channels {
-        if only.name == LONE_CHANNEL && only.sensors.len() == 1 {
-            return only.sensors.clone();
-        }
+    if let [only] = channels
+        && only.name == LONE_CHANNEL
+        && only.sensors.len() == 1
+    {
+        return only.sensors.clone();
     }
     channels
         .iter()

@@ -171,7 +171,7 @@ impl Meter {
         self.measured += 1;
         // Sorting 64 numbers is cheap, but there is no need to do it every callback once
         // the window is full; early on it is done every time so that short runs report.
-        if self.filled < LATENCY_WINDOW || self.measured % LATENCY_PUBLISH_EVERY == 0 {
+        if self.filled < LATENCY_WINDOW || self.measured.is_multiple_of(LATENCY_PUBLISH_EVERY) {
             let window = &mut self.sorted[..self.filled];
             window.copy_from_slice(&self.latencies[..self.filled]);
             window.sort_unstable();

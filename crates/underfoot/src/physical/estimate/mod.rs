@@ -42,7 +42,7 @@
 //! **Cost.** The renders are most of it (a nominal step is a second at 48 kHz through
 //! 32 modes and four impacts in flight); the measurement is the IIR fit's, passed in by
 //! [`estimate_measured`], and [`crate::material::build`] runs the estimation beside the
-//! IIR fit. `benches/calibration.rs` and `scripts/time-fit` measure it.
+//! IIR fit. `underfoot-bench`'s `benches/calibration.rs` and `scripts/time-fit` measure it.
 //!
 //! On the shared recordings the estimated models come within 0.8-2.1 dB (log-spectral
 //! distance) of the measurement in the render they were fitted on, and 0.8-2.4 dB in a

@@ -280,7 +280,7 @@ impl Impact {
                 *o += self.step() as f32;
             }
             rest = tail;
-            if self.stats.samples % WITHDRAW_CHECK as u64 == 0 {
+            if self.stats.samples.is_multiple_of(WITHDRAW_CHECK as u64) {
                 self.withdraw_if_gone();
             }
         }

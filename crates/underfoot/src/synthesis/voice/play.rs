@@ -192,7 +192,7 @@ impl Voice {
             resets +=
                 self.process_stretch(&input[start..start + len], &mut out[start..start + len]);
             self.clock += len as u64;
-            if self.clock % FLUSH_EVERY as u64 == 0 {
+            if self.clock.is_multiple_of(FLUSH_EVERY as u64) {
                 self.flush_tiny_states();
             }
             start += len;
