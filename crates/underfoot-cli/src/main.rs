@@ -6,6 +6,7 @@
 //! command-line mistakes exit with status 2.
 
 mod commands;
+mod message;
 mod output;
 mod plot;
 mod report;
@@ -48,7 +49,16 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        // --help and --version: printed to stdout, status 0.
+        Err(e) if !e.use_stderr() => e.exit(),
+        Err(e) => {
+            // A usage error echoes the offending value; a 100 kB one is cut.
+            eprint!("{}", message::shorten(&e.render().to_string()));
+            return ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2));
+        }
+    };
     let result = match cli.command {
         Command::Fit(args) => commands::fit::run(&args),
         Command::Library(cmd) => commands::library::run(&cmd),
@@ -64,7 +74,7 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             // `{:#}` prints the whole context chain on one line: "what we did: why it failed".
-            eprintln!("underfoot: error: {e:#}");
+            eprintln!("underfoot: error: {}", message::shorten(&format!("{e:#}")));
             ExitCode::FAILURE
         }
     }

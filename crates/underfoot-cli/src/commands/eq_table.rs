@@ -19,8 +19,12 @@ pub enum EqTableCommand {
     /// Add a user (their fitted limb model) with their equalizer: the device's, then the
     /// inverse of their limb. Creates the table if it does not exist.
     Add(AddArgs),
-    /// List the users of a table.
+    /// List the users of a table: name and limb parameters.
+    List(ListArgs),
+    /// Show one user: limb parameters and their equalizer curve.
     Show(ShowArgs),
+    /// Remove a user from a table.
+    Remove(RemoveArgs),
 }
 
 /// `underfoot eq-table add`.
@@ -40,9 +44,29 @@ pub struct AddArgs {
     pub name: Option<String>,
 }
 
+/// `underfoot eq-table list`.
+#[derive(Debug, Clone, Args)]
+pub struct ListArgs {
+    /// The table file.
+    #[arg(long, value_name = "FILE")]
+    pub table: PathBuf,
+}
+
 /// `underfoot eq-table show`.
 #[derive(Debug, Clone, Args)]
 pub struct ShowArgs {
+    /// The user's name.
+    pub name: String,
+    /// The table file.
+    #[arg(long, value_name = "FILE")]
+    pub table: PathBuf,
+}
+
+/// `underfoot eq-table remove`.
+#[derive(Debug, Clone, Args)]
+pub struct RemoveArgs {
+    /// The user's name.
+    pub name: String,
     /// The table file.
     #[arg(long, value_name = "FILE")]
     pub table: PathBuf,
@@ -51,7 +75,9 @@ pub struct ShowArgs {
 pub fn run(cmd: &EqTableCommand) -> anyhow::Result<()> {
     match cmd {
         EqTableCommand::Add(args) => add(args),
+        EqTableCommand::List(args) => list(args),
         EqTableCommand::Show(args) => show(args),
+        EqTableCommand::Remove(args) => remove(args),
     }
 }
 
@@ -109,6 +135,74 @@ fn add(args: &AddArgs) -> anyhow::Result<()> {
 }
 
 fn show(args: &ShowArgs) -> anyhow::Result<()> {
+    let users = document::load::<UserTable>(&args.table)?;
+    let user = users.get(&args.name).with_context(|| {
+        format!(
+            "no user \"{}\" in {} (users: {})",
+            args.name,
+            args.table.display(),
+            names(&users)
+        )
+    })?;
+    let mut text = format!(
+        "{}: b3/k3 {:.5} s, k2/m2 {:.3e} s^-2, b2/m2 {:.0} s^-1\n",
+        user.name, user.params.b3_k3, user.params.k2_m2, user.params.b2_m2
+    );
+    // The curve at about a third of an octave: enough to see its shape in a terminal.
+    let rows: Vec<Vec<String>> = users
+        .freqs
+        .iter()
+        .zip(&user.weights_db)
+        .scan(0.0_f64, |last, (f, w)| {
+            let keep = f.0 >= *last * 2f64.powf(1.0 / 3.0);
+            if keep {
+                *last = f.0.max(1.0);
+            }
+            Some(keep.then(|| vec![format!("{:.0}", f.0), format!("{w:+.2}")]))
+        })
+        .flatten()
+        .collect();
+    text.push_str(&table(
+        &[("Hz", Align::Right), ("equalizer (dB)", Align::Right)],
+        &rows,
+    ));
+    emit(&text)
+}
+
+fn remove(args: &RemoveArgs) -> anyhow::Result<()> {
+    let out = OutputFile::check(&args.table, &[])?;
+    let _lock = out.lock()?;
+    let mut users = document::load::<UserTable>(&args.table)?;
+    let removed = users.remove(&args.name);
+    anyhow::ensure!(
+        removed.is_some(),
+        "no user \"{}\" in {} (users: {})",
+        args.name,
+        args.table.display(),
+        names(&users)
+    );
+    document::save_to(&out, &users)?;
+    emit(&format!(
+        "removed {} from {}: {} user(s)\n",
+        args.name,
+        args.table.display(),
+        users.entries.len()
+    ))
+}
+
+fn names(users: &UserTable) -> String {
+    if users.entries.is_empty() {
+        return "none".to_owned();
+    }
+    users
+        .entries
+        .iter()
+        .map(|e| e.name.as_str())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn list(args: &ListArgs) -> anyhow::Result<()> {
     let users = document::load::<UserTable>(&args.table)?;
     let rows: Vec<Vec<String>> = users
         .entries

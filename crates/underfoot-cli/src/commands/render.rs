@@ -50,8 +50,8 @@ pub struct RenderArgs {
     #[arg(long, value_name = "FILE.csv")]
     force: Option<PathBuf>,
     /// Generate the force of a walk instead, e.g. "steps=12,cadence=1.8,weight=70"
-    /// (keys: steps, cadence, weight, channels, variation, rate, seed, stance).
-    #[arg(long, value_name = "SPEC")]
+    /// (steps per foot; `--help` lists every key with its unit and range).
+    #[arg(long, value_name = "SPEC", long_help = gait_help())]
     gait: Option<String>,
     /// Save the generated force track too.
     #[arg(long = "save-force", value_name = "FILE.csv", requires = "gait")]
@@ -257,4 +257,12 @@ fn force_at_audio_rate(
         force.extend(conditioners.iter_mut().map(ForceConditioner::next_total));
     }
     force
+}
+
+/// `--gait`'s long help: the one-line summary, then every key.
+fn gait_help() -> String {
+    format!(
+        "Generate the force of a walk instead, e.g. \"steps=12,cadence=1.8,weight=70\".\n\n{}",
+        underfoot::force::gait::SPEC_HELP
+    )
 }

@@ -32,13 +32,19 @@ const CURVE_COLOURS: [RGBColor; 6] = [
 
 /// Draws magnitude responses (dB on a log-frequency axis) in one panel: an equalizer's
 /// passes against flat, or a limb model against its measurement.
-pub fn draw_responses(path: &Path, title: &str, curves: &[Curve<'_>]) -> anyhow::Result<Omitted> {
+pub fn draw_responses(
+    path: &Path,
+    title: &str,
+    y_desc: &str,
+    curves: &[Curve<'_>],
+) -> anyhow::Result<Omitted> {
     draw(path, |format, show_text| {
         if curves.is_empty() || curves.iter().any(|c| c.freqs_hz.len() < 2) {
             bail!("nothing to plot in {}", path.display());
         }
         let figure = Responses {
             title,
+            y_desc,
             curves,
             show_text,
         };
@@ -49,6 +55,7 @@ pub fn draw_responses(path: &Path, title: &str, curves: &[Curve<'_>]) -> anyhow:
 /// Curves in one panel, with a title and a legend.
 struct Responses<'a> {
     title: &'a str,
+    y_desc: &'a str,
     curves: &'a [Curve<'a>],
     show_text: bool,
 }
@@ -58,16 +65,20 @@ impl Figure for Responses<'_> {
         &self,
         root: &DrawingArea<DB, Shift>,
     ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
-        draw_response_panel(root, self.title, self.curves, self.show_text)
+        draw_response_panel(root, self)
     }
 }
 
 fn draw_response_panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
-    title: &str,
-    curves: &[Curve<'_>],
-    show_text: bool,
+    figure: &Responses<'_>,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let Responses {
+        title,
+        y_desc,
+        curves,
+        show_text,
+    } = *figure;
     area.fill(&WHITE)?;
     let ink = ink(show_text);
     let text = |size: f64| (FAMILY, size).into_font().color(&ink);
@@ -92,27 +103,49 @@ fn draw_response_panel<DB: DrawingBackend>(
     let (w, _) = area.dim_in_pixel();
     let row_y = (TITLE_HEIGHT / 2) as i32;
     let style = |i: usize| CURVE_COLOURS[i % CURVE_COLOURS.len()].stroke_width(2);
+    // The legend goes right of the title when it fits (measured with the font), else on
+    // a row of its own below it: never over the title.
+    let mut legend_drop = 0u32;
     if show_text {
+        let title_style = text(17.0).pos(Pos::new(HPos::Left, VPos::Center));
+        let label_style = text(13.0).pos(Pos::new(HPos::Left, VPos::Center));
         area.draw(&Text::new(
             title.to_string(),
             (12, row_y),
-            text(17.0).pos(Pos::new(HPos::Left, VPos::Center)),
+            title_style.clone(),
         ))?;
-        let first = w as i32 - 150 * curves.len() as i32;
-        for (i, c) in curves.iter().enumerate() {
-            let x = first + 150 * i as i32;
-            area.draw(&PathElement::new(
-                vec![(x, row_y), (x + 20, row_y)],
-                style(i),
-            ))?;
+        // Measured with the font when one is loaded (an SVG needs none to be written),
+        // else at a generous 0.6 em a character.
+        let width = |t: &str, style: &TextStyle<'_>, size: f64| {
+            area.estimate_text_size(t, style).map_or_else(
+                |_| (0.6 * size * t.chars().count() as f64) as i32,
+                |(w, _)| w as i32,
+            )
+        };
+        let title_end = 12 + width(title, &title_style, 17.0);
+        let widths: Vec<i32> = curves
+            .iter()
+            .map(|c| 25 + width(&c.label, &label_style, 13.0) + 20)
+            .collect();
+        let mut x = w as i32 - 8 - widths.iter().sum::<i32>();
+        let mut y = row_y;
+        if x < title_end + 24 {
+            legend_drop = 20;
+            y = row_y + legend_drop as i32;
+            x = (w as i32 - 8 - widths.iter().sum::<i32>()).max(12);
+        }
+        for (i, (c, width)) in curves.iter().zip(&widths).enumerate() {
+            area.draw(&PathElement::new(vec![(x, y), (x + 20, y)], style(i)))?;
             area.draw(&Text::new(
                 c.label.clone(),
-                (x + 25, row_y),
-                text(13.0).pos(Pos::new(HPos::Left, VPos::Center)),
+                (x + 25, y),
+                label_style.clone(),
             ))?;
+            x += width;
         }
     }
-    let mut chart = magnitude_chart(area, (lo, hi), (floor, top), ink)?;
+    let area = &area.margin(legend_drop, 0, 0, 0);
+    let mut chart = magnitude_chart(area, (lo, hi), (floor, top), ink, y_desc)?;
     for (i, c) in curves.iter().enumerate() {
         let points: Vec<(f64, f64)> = c
             .freqs_hz

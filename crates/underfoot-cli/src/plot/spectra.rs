@@ -150,7 +150,13 @@ fn draw_panel<DB: DrawingBackend>(
         }
     }
 
-    let mut chart = magnitude_chart(area, (lo, hi), (floor, top), ink)?;
+    let mut chart = magnitude_chart(
+        area,
+        (lo, hi),
+        (floor, top),
+        ink,
+        "strike spectrum (dB, |DFT| in full-scale units)",
+    )?;
     chart.draw_series(LineSeries::new(series(&fit.measured), measured_style))?;
     chart.draw_series(LineSeries::new(series(&fit.model), model_style))?;
     if let Some(physical) = panel.physical {

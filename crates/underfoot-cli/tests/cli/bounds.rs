@@ -5,7 +5,7 @@
 //!
 //! `UNDERFOOT_TEST_BIN` runs them against another build (e.g. main's, to see them fail).
 
-use crate::common::bin;
+use crate::common::{assert_error, bin, run, s, stderr};
 use std::fs;
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -350,4 +350,38 @@ fn fit_bands_rates_and_endless_inputs_end_promptly() {
     args.push("steps.wav");
     let e = run_within(dir.path(), &args, Duration::from_secs(120));
     ended_with(&e, 0);
+}
+
+/// Errors echo what was typed, but not all of it (issue 16): a 100 kB material name or
+/// spec comes back cut, with its length.
+#[test]
+fn errors_cut_what_they_echo() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let huge = "g".repeat(100_000);
+    let out = dir.path().join("x.wav");
+    let o = run(&[
+        "render",
+        "--material",
+        &huge,
+        "--gait",
+        "steps=1",
+        "--out",
+        s(&out),
+    ]);
+    let e = assert_error(&o);
+    assert!(e.len() < 1000, "{} bytes: {}", e.len(), &e[..200]);
+    assert!(e.contains("characters)"), "{e}");
+    assert!(!out.exists());
+    // A usage error (clap's, status 2) too.
+    let o = run(&[
+        "run",
+        "--input",
+        &format!("gait:{huge}"),
+        "--output",
+        "null",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(e.len() < 1000, "{} bytes", e.len());
+    assert!(e.contains("characters)"), "{e}");
 }

@@ -76,9 +76,23 @@ fn a_compensation_session_on_the_simulated_tile() {
             s(&eq),
         ]));
     }
-    let o = run(&["eq-table", "show", "--table", s(&table)]);
+    let o = run(&["eq-table", "list", "--table", s(&table)]);
     assert_ok(&o);
     assert!(stdout(&o).contains("anna") && stdout(&o).contains("bob"));
+    // The verbs of `library`: list, show NAME, remove NAME (issue 16).
+    let o = run(&["eq-table", "show", "anna", "--table", s(&table)]);
+    assert_ok(&o);
+    assert!(stdout(&o).contains("b3/k3") && stdout(&o).contains("equalizer (dB)"));
+    let copy = p("users-copy.json");
+    fs::copy(&table, &copy).unwrap();
+    assert_ok(&run(&["eq-table", "remove", "bob", "--table", s(&copy)]));
+    let o = run(&["eq-table", "list", "--table", s(&copy)]);
+    assert!(stdout(&o).contains("anna") && !stdout(&o).contains("bob"));
+    let e = assert_error(&run(&["eq-table", "remove", "bob", "--table", s(&copy)]));
+    assert!(
+        e.contains("no user \"bob\"") && e.contains("users: anna"),
+        "{e}"
+    );
 
     // Rendering through the equalizer and Anna's limb filter, and through the table.
     for extra in [

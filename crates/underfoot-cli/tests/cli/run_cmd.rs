@@ -199,3 +199,67 @@ fn a_bare_run_plays_a_generated_walk_and_says_what_it_chose() {
         assert!(stdout(&o).contains("8 strike(s)"), "{}", stdout(&o));
     }
 }
+
+/// `--status-json -`: a line of JSON a second on standard output, before the summary,
+/// that a script can parse; the counts only grow (issue 16).
+#[test]
+#[ignore = "slow tier: paced in real time"]
+fn status_json_lines_parse_and_count_up() {
+    let o = run(&[
+        "run",
+        "--input",
+        "gait:steps=3,channels=1,lead_in=0.1,tail=0.1",
+        "--output",
+        "null",
+        "--status-json",
+        "-",
+    ]);
+    assert_ok(&o);
+    let out = stdout(&o);
+    let lines: Vec<serde_json::Value> = out
+        .lines()
+        .filter(|l| l.starts_with('{'))
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .collect();
+    assert!(lines.len() >= 2, "{out}");
+    for pair in lines.windows(2) {
+        assert!(pair[1]["elapsed_s"].as_f64() > pair[0]["elapsed_s"].as_f64());
+        assert!(pair[1]["strikes"].as_u64() >= pair[0]["strikes"].as_u64());
+        assert!(pair[1]["input"]["events"].as_u64() > pair[0]["input"]["events"].as_u64());
+    }
+    let last = lines.last().unwrap();
+    assert_eq!(last["channels"].as_array().unwrap().len(), 1);
+    assert!(last["strikes"].as_u64().unwrap() >= 1, "{last}");
+    // Not a terminal: no status block on stderr.
+    assert!(!stderr(&o).contains('\x1b'), "{}", stderr(&o));
+}
+
+/// On a terminal, one status block redrawn in place (issue 16): run under a
+/// pseudo-terminal (`script`), with standard input held open so that the session is not
+/// stopped by an end of input.
+#[test]
+#[ignore = "slow tier: paced in real time"]
+fn a_terminal_gets_a_status_block_redrawn_in_place() {
+    let cmd = format!(
+        "{} run --input gait:steps=2,channels=2,lead_in=0.1,tail=0.1 --output null",
+        crate::common::bin().display()
+    );
+    let mut child = std::process::Command::new("script")
+        .args(["-qec", &cmd, "/dev/null"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("`script` (util-linux) runs the command under a pseudo-terminal");
+    // Kept open until the session has ended by itself.
+    let stdin = child.stdin.take();
+    let o = child.wait_with_output().expect("script ends");
+    drop(stdin);
+    assert!(o.status.success(), "{o:?}");
+    let tty = String::from_utf8_lossy(&o.stdout);
+    assert!(tty.contains("channel   force (N)   strikes"), "{tty}");
+    // Redrawn: the cursor goes back up over the block (two header lines and a line per
+    // channel) more than once.
+    assert!(tty.matches("\x1b[5A").count() >= 2, "{tty}");
+    assert!(tty.contains("4 strike(s)"), "{tty}");
+}

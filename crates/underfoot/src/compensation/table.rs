@@ -130,6 +130,12 @@ impl UserTable {
         Ok(())
     }
 
+    /// Removes the user called `name`, whom it returns (`None`: no such user).
+    pub fn remove(&mut self, name: &str) -> Option<UserEntry> {
+        let index = self.entries.iter().position(|e| e.name == name)?;
+        Some(self.entries.remove(index))
+    }
+
     /// The user called `name`.
     #[must_use]
     pub fn get(&self, name: &str) -> Option<&UserEntry> {

@@ -192,26 +192,29 @@ impl Engine {
             // Render in sub-blocks through a stack buffer: no per-channel output storage.
             // A channel without a device channel still runs, so its state stays in time.
             let mut start = 0;
+            let mut channel_report = LimiterReport::default();
+            let mut channel_peak = 0.0f32;
             while start < n {
                 let len = (n - start).min(channel_buf.len());
                 let buf = &mut channel_buf[..len];
                 resets += channel.render(buf);
-                // A channel that is not played runs its stage to keep it in time, but
-                // what its limiter does is nobody's concern.
-                let mut unplayed = LimiterReport::default();
-                let counted = if c < device_channels {
-                    &mut report
-                } else {
-                    &mut unplayed
-                };
-                resets += stage.process(buf, &fade[start..start + len], counted);
+                resets += stage.process(buf, &fade[start..start + len], &mut channel_report);
                 if c < device_channels {
                     for (i, v) in buf.iter().enumerate() {
-                        self.peak = self.peak.max(v.abs());
+                        channel_peak = channel_peak.max(v.abs());
                         out[(start + i) * device_channels + c] = *v;
                     }
                 }
                 start += len;
+            }
+            // A channel that is not played runs its stage to keep it in time, but what its
+            // limiter does is nobody's concern.
+            if c < device_channels {
+                report.limited = report.limited.saturating_add(channel_report.limited);
+                report.non_finite = report.non_finite.saturating_add(channel_report.non_finite);
+                self.peak = self.peak.max(channel_peak);
+                self.telemetry
+                    .meter_block(c, channel_peak, channel_report.limited);
             }
         }
         self.frame += n as u64;

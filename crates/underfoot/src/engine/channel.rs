@@ -12,6 +12,8 @@ use crate::units::Seconds;
 
 /// A channel's state. All buffers are sized at construction; rendering never allocates.
 pub(super) struct Channel {
+    /// Its index in the engine: which meter of the telemetry it counts on.
+    index: usize,
     conditioner: ForceConditioner,
     detector: StepDetector,
     rng: SplitMix64,
@@ -46,6 +48,7 @@ impl Channel {
     pub(super) fn new(config: &EngineConfig, index: usize, ground: Option<&Ground>) -> Self {
         let rate = config.rate;
         Self {
+            index,
             conditioner: ForceConditioner::new(rate, config.sensor_rate),
             detector: StepDetector::new(&config.detector, config.sensor_rate),
             // Each channel its own stream: steps on two feet are not the same.
@@ -110,6 +113,7 @@ impl Channel {
             return false;
         }
         self.conditioner.push(reading);
+        telemetry.meter_force(self.index, reading.total());
         let time = reading.time().map_or_else(
             || ReadingTime::Arrival(Seconds(frame as f64 / self.rate_hz)),
             ReadingTime::Sensor,
@@ -129,7 +133,7 @@ impl Channel {
         }
         if let (true, Some(grounds)) = (self.physical[self.current], &mut self.grounds) {
             // No force will follow: the physical model plays a nominal step itself.
-            telemetry.count_strike();
+            telemetry.count_strike(self.index);
             grounds[self.current].step(intensity.clamp(0.0, 4.0));
             return true;
         }
@@ -142,7 +146,7 @@ impl Channel {
     }
 
     fn strike(&mut self, intensity: f32, telemetry: &Telemetry) {
-        telemetry.count_strike();
+        telemetry.count_strike(self.index);
         if let (true, Some(grounds)) = (self.physical[self.current], &mut self.grounds) {
             grounds[self.current].strike(intensity);
         }

@@ -90,7 +90,7 @@ use clock::SensorClock;
 pub use config::{EngineConfig, EngineError};
 pub use controller::Controller;
 pub use output::OutputStage;
-pub use telemetry::{Telemetry, TelemetrySnapshot};
+pub use telemetry::{ChannelLevels, Telemetry, TelemetrySnapshot};
 
 /// Builds an engine and its controller. `initial` is each channel's starting material
 /// (slot in `bank`); a channel without one is silent until it gets a material event.
@@ -145,7 +145,7 @@ pub fn build(
     // Room for every replacement that could be in flight, so the engine never has to
     // drop a retired material on the audio thread.
     let (retire_tx, retire_rx) = rtrb::RingBuffer::new(config.queue_capacity);
-    let telemetry = Arc::new(Telemetry::default());
+    let telemetry = Arc::new(Telemetry::new(config.channels));
     let bank: Vec<Box<PreparedMaterial>> = bank.materials.into_iter().map(Box::new).collect();
     let prototype = bank.iter().find_map(|m| m.ground.as_ref());
     let mut channels: Vec<Channel> = (0..config.channels)

@@ -22,6 +22,81 @@ pub struct Telemetry {
     pub(super) anchor_frame: AtomicU64,
     pub(super) anchor_time_bits: AtomicU64,
     pub(super) resyncs: AtomicU64,
+    /// One meter per engine channel, allocated with the engine.
+    pub(super) channels: Box<[ChannelMeter]>,
+}
+
+/// One channel's live levels, published by the audio thread: relaxed atomics, written
+/// once per reading or per block, never a lock.
+#[derive(Debug, Default)]
+pub(super) struct ChannelMeter {
+    /// The last total force taken, in newtons (`f32` bits).
+    force_bits: AtomicU32,
+    strikes: AtomicU64,
+    /// The largest absolute sample since the last [`Telemetry::take_channel`] (`f32`
+    /// bits: for non-negative floats the bit patterns order as the values do, so
+    /// `fetch_max` on them is a maximum of the values).
+    peak_bits: AtomicU32,
+    limited: AtomicU64,
+}
+
+/// One channel's levels, as [`Telemetry::take_channel`] reads them.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ChannelLevels {
+    /// The last total force the channel took (sum of its sensors), in newtons.
+    pub force: f32,
+    /// Heel strikes on this channel so far.
+    pub strikes: u64,
+    /// The largest absolute output sample since the previous take (full scale 1.0).
+    pub peak: f32,
+    /// Samples of this channel the limiter reduced so far.
+    pub limited: u64,
+}
+
+impl Telemetry {
+    /// Counters for an engine of `channels` channels (set-up: allocates the meters).
+    #[must_use]
+    pub fn new(channels: usize) -> Self {
+        Self {
+            channels: (0..channels).map(|_| ChannelMeter::default()).collect(),
+            ..Self::default()
+        }
+    }
+
+    /// Channel `c`'s levels, or `None` beyond the engine's channels. The peak is the
+    /// largest sample since the previous take, which resets it: one reader (a status
+    /// display) takes it at its own pace; [`snapshot`](Self::snapshot)'s peak is the
+    /// session's and unaffected.
+    #[must_use]
+    pub fn take_channel(&self, c: usize) -> Option<ChannelLevels> {
+        let m = self.channels.get(c)?;
+        Some(ChannelLevels {
+            force: f32::from_bits(m.force_bits.load(Ordering::Relaxed)),
+            strikes: m.strikes.load(Ordering::Relaxed),
+            peak: f32::from_bits(m.peak_bits.swap(0, Ordering::Relaxed)),
+            limited: m.limited.load(Ordering::Relaxed),
+        })
+    }
+
+    /// The number of channels metered.
+    #[must_use]
+    pub fn channels(&self) -> usize {
+        self.channels.len()
+    }
+
+    pub(super) fn meter_force(&self, c: usize, newtons: f32) {
+        if let Some(m) = self.channels.get(c) {
+            m.force_bits.store(newtons.to_bits(), Ordering::Relaxed);
+        }
+    }
+
+    pub(super) fn meter_block(&self, c: usize, peak: f32, limited: u32) {
+        if let Some(m) = self.channels.get(c) {
+            // Non-negative (an absolute value) and finite (after the limiter).
+            m.peak_bits.fetch_max(peak.to_bits(), Ordering::Relaxed);
+            m.limited.fetch_add(u64::from(limited), Ordering::Relaxed);
+        }
+    }
 }
 
 impl Default for Telemetry {
@@ -40,6 +115,7 @@ impl Default for Telemetry {
             anchor_frame: AtomicU64::new(NO_ANCHOR),
             anchor_time_bits: AtomicU64::new(0),
             resyncs: AtomicU64::new(0),
+            channels: Box::new([]),
         }
     }
 }
@@ -79,8 +155,11 @@ pub struct TelemetrySnapshot {
 }
 
 impl Telemetry {
-    pub(super) fn count_strike(&self) {
+    pub(super) fn count_strike(&self, channel: usize) {
         self.strikes.fetch_add(1, Ordering::Relaxed);
+        if let Some(m) = self.channels.get(channel) {
+            m.strikes.fetch_add(1, Ordering::Relaxed);
+        }
     }
 
     pub(super) fn count_rejected(&self) {

@@ -100,7 +100,8 @@ mod tests;
 pub use output::{OutputInfo, OutputReport};
 pub use paced::{PacedDevice, PacedReport};
 pub use session::{
-    InterfaceSummary, RunningSession, SerialSettings, Session, SessionConfig, SessionInput, Summary,
+    InterfaceSummary, RunningSession, SerialSettings, Session, SessionConfig, SessionInput, Status,
+    Summary,
 };
 
 use crate::atomic_file::AtomicWriteError;

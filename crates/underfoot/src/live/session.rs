@@ -7,7 +7,9 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use crate::atomic_file::OutputFile;
-use crate::engine::{self, Controller, EngineConfig, MaterialBank, TelemetrySnapshot, TimedEvent};
+use crate::engine::{
+    self, ChannelLevels, Controller, EngineConfig, MaterialBank, TelemetrySnapshot, TimedEvent,
+};
 use crate::interface::config::InterfaceConfig;
 use crate::io::prosthetic::{ProstheticHost, ProstheticStats};
 use crate::io::spec::{InputSpec, OutputSpec};
@@ -115,6 +117,12 @@ impl SessionConfig {
         let OutputSpec::Wav { path } = &self.output else {
             return Ok(None);
         };
+        Ok(Some(OutputFile::check(path, &self.inputs())?))
+    }
+
+    /// Every file the session reads: what no file it writes may be.
+    #[must_use]
+    pub fn inputs(&self) -> Vec<&Path> {
         let mut inputs: Vec<&Path> = self.reads.iter().map(PathBuf::as_path).collect();
         if let SessionInput::Interface(config) = &self.input {
             inputs.push(config);
@@ -123,7 +131,7 @@ impl SessionConfig {
         if let SessionInput::Spec(InputSpec::Replay { file, .. }) = &self.input {
             inputs.push(file);
         }
-        Ok(Some(OutputFile::check(path, &inputs)?))
+        inputs
     }
 }
 
@@ -297,6 +305,23 @@ pub struct Summary {
     pub lost: Option<LinkEvent>,
 }
 
+/// What a running session is doing now, given to
+/// [`RunningSession::run_with_status`]'s callback.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Status {
+    /// Since the start of the run.
+    pub elapsed: Duration,
+    /// The engine's counters so far.
+    pub telemetry: TelemetrySnapshot,
+    /// Each engine channel's levels: the last force, strikes, the peak since the
+    /// previous status, limited samples.
+    pub channels: Vec<ChannelLevels>,
+    /// The input's counts so far.
+    pub input: SourceStats,
+    /// Events dropped so far because the engine's queue was full.
+    pub queue_full: u64,
+}
+
 impl RunningSession {
     /// What output was started.
     #[must_use]
@@ -314,11 +339,34 @@ impl RunningSession {
     /// The input failed, the output stopped or failed, or the engine's stop command could
     /// not be sent.
     pub fn run(
+        self,
+        stop: &AtomicBool,
+        on_link: impl FnMut(&LinkEvent),
+    ) -> Result<Summary, LiveError> {
+        self.run_with_status(stop, on_link, Duration::MAX, |_| {})
+    }
+
+    /// [`run`](Self::run), giving `on_status` what the session is doing about every
+    /// `every` (at most as often as the loop polls, 50 times a second), from the thread
+    /// that runs it: the engine's levels are read from its atomics, so a status never
+    /// makes the audio thread wait.
+    ///
+    /// # Errors
+    /// As [`run`](Self::run).
+    pub fn run_with_status(
         mut self,
         stop: &AtomicBool,
         mut on_link: impl FnMut(&LinkEvent),
+        every: Duration,
+        mut on_status: impl FnMut(&Status),
     ) -> Result<Summary, LiveError> {
         let started = Instant::now();
+        let meters = self.controller.telemetry_handle();
+        let mut status = Status {
+            channels: vec![ChannelLevels::default(); meters.channels()],
+            ..Status::default()
+        };
+        let mut last_status = started;
         let deadline = self
             .duration
             .map(|d| started + Duration::from_secs_f64(d.0.max(0.0)));
@@ -332,6 +380,17 @@ impl RunningSession {
         loop {
             if stop.load(Ordering::SeqCst) || deadline.is_some_and(|d| Instant::now() >= d) {
                 break;
+            }
+            if last_status.elapsed() >= every {
+                last_status = Instant::now();
+                status.elapsed = started.elapsed();
+                status.telemetry = controller.telemetry();
+                for (c, levels) in status.channels.iter_mut().enumerate() {
+                    *levels = meters.take_channel(c).unwrap_or_default();
+                }
+                status.input = source.stats();
+                status.queue_full = queue_full;
+                on_status(&status);
             }
             if let Some(t) = ended_at {
                 if Instant::now().duration_since(t) >= RING_OUT {

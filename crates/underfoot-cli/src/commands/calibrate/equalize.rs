@@ -152,7 +152,12 @@ fn draw_passes(out: &OutputFile, passes: &[PassReport]) -> anyhow::Result<()> {
     plotted(
         out.path(),
         out.write_with(|p| {
-            draw_responses(p, "Equalized device against flat, pass by pass", &curves)
+            draw_responses(
+                p,
+                "Equalized device against flat, pass by pass",
+                "magnitude (dB re its mean in the band)",
+                &curves,
+            )
         })?,
     )
 }

@@ -129,7 +129,16 @@ pub(super) fn run(args: &LimbArgs) -> anyhow::Result<()> {
         plotted(
             plot,
             plot_out.write_with(|p| {
-                draw_responses(p, "Loaded response and the limb model H_u", &curves)
+                draw_responses(
+                    p,
+                    "Loaded response and the limb model H_u",
+                    if args.unloaded.is_some() {
+                        "magnitude (dB re the device without the user)"
+                    } else {
+                        "magnitude (dB re the equalized device's flat)"
+                    },
+                    &curves,
+                )
             })?,
         )?;
     }

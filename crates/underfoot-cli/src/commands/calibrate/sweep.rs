@@ -37,7 +37,7 @@ fn parse_sweep_duration(s: &str) -> Result<f64, SpecError> {
 #[derive(Debug, Clone, Args)]
 pub struct SweepSettings {
     /// The band measured, in Hz (the skin's vibrotactile range by default).
-    #[arg(long, default_value = "40,1024", value_name = "LO,HI")]
+    #[arg(long, default_value = "40:1024", value_name = "LO:HI")]
     pub band: Band,
     /// Sample rate.
     #[arg(long, default_value_t = 48_000, value_name = "HZ", value_parser = parse_sweep_rate)]
@@ -174,7 +174,12 @@ pub(super) fn run(args: &SweepArgs) -> anyhow::Result<()> {
         plotted(
             plot,
             plot_out.write_with(|p| {
-                draw_responses(p, "Frequency response (relative to its mean)", &curves)
+                draw_responses(
+                    p,
+                    "Frequency response (relative to its mean)",
+                    "magnitude (dB re its mean in the band)",
+                    &curves,
+                )
             })?,
         )?;
     }

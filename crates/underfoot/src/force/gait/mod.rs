@@ -112,7 +112,7 @@ mod walk;
 
 pub use config::GaitConfig;
 pub use error::GaitError;
-pub use spec::SPEC_KEYS;
+pub use spec::{SPEC_HELP, SPEC_KEYS};
 pub use step::nominal_step;
 pub use walk::generate;
 

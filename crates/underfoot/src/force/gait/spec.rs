@@ -19,6 +19,19 @@ pub const SPEC_KEYS: &[&str] = &[
     "tail",
 ];
 
+/// Every key of the spec with its unit, range and default, as `--help` shows it.
+pub const SPEC_HELP: &str = "A walk: comma-separated key=value items, every key optional:
+  steps=N      heel strikes per foot (two feet: 2N strikes in all); default 8
+  cadence=HZ   steps per second, both feet together, 0.5 to 4; default 1.8, a brisk walk
+  weight=KG    body mass in kilograms, 20 to 300; default 70
+  channels=N   feet, 1 or 2 (channel 1 is the left foot); default 2
+  variation=X  relative step-to-step variation of timing and force, 0 to 0.3; default 0.05
+  rate=HZ      sensor readings per second, 50 to 10000; default 500
+  seed=N       seed of the variation (the same seed, the same walk); default 1
+  stance=X     fraction of a stride a foot is on the ground, 0.55 to 0.75; default 0.62
+  lead_in=S    seconds of silence before the first heel strike, 0 to 60; default 0.5
+  tail=S       seconds of silence after the last toe-off, 0 to 60; default 1";
+
 impl GaitConfig {
     /// The default configuration changed by `key=value` items separated by commas, e.g.
     /// `steps=12,cadence=1.8,weight=70`; keys are [`SPEC_KEYS`]. An empty spec gives the

@@ -295,3 +295,23 @@ fn specs_parse_and_faults_are_named() {
         "{message}"
     );
 }
+
+/// `--help` shows [`SPEC_HELP`]: it names every key, and the defaults it states are the
+/// defaults (read back through the spec parser).
+#[test]
+fn the_spec_help_names_every_key_with_its_default() {
+    let d = GaitConfig::default();
+    for key in SPEC_KEYS {
+        let line = SPEC_HELP
+            .lines()
+            .find(|l| l.trim_start().starts_with(&format!("{key}=")))
+            .unwrap_or_else(|| panic!("{key} is not in SPEC_HELP"));
+        let default = line
+            .split("; default ")
+            .nth(1)
+            .and_then(|t| t.split([',', ' ']).next())
+            .unwrap_or_else(|| panic!("no default in {line}"));
+        let given = GaitConfig::from_spec(&format!("{key}={default}")).expect(line);
+        assert_eq!(given, d, "{line}");
+    }
+}

@@ -21,6 +21,7 @@ use std::thread;
 
 use anyhow::{Context, bail};
 use clap::Args;
+use underfoot::atomic_file::OutputFile;
 use underfoot::io::spec::{self, InputSpec, OutputSpec, SpecError};
 use underfoot::io::{Backoff, LinkEvent};
 use underfoot::live::{
@@ -30,6 +31,8 @@ use underfoot::live::{
 use underfoot::units::{Decibels, Seconds};
 
 use crate::commands::synth::SynthArgs;
+
+mod status;
 use crate::output::emit;
 
 /// Arguments of `underfoot run`.
@@ -38,7 +41,7 @@ pub struct RunArgs {
     /// Where force comes from: replay:FILE.csv[@SPEED], gait:SPEC, serial:PORT, osc:HOST:PORT.
     /// Default (no --input, no --interface): a generated walk, `gait:steps=4`, said so on
     /// stderr.
-    #[arg(long, value_name = "SOURCE", conflicts_with = "interface")]
+    #[arg(long, value_name = "SOURCE", conflicts_with = "interface", long_help = input_help())]
     input: Option<InputArg>,
     /// A prosthetic-skin interface (prosthetic.toml): insole force in, servo targets out,
     /// one vibration channel per [[channel]]. Replaces --input.
@@ -99,6 +102,15 @@ pub struct RunArgs {
     /// List the audio devices and exit.
     #[arg(long = "list-devices")]
     list_devices: bool,
+    /// No live status block (it is shown on stderr when stderr is a terminal).
+    #[arg(long, short = 'q')]
+    quiet: bool,
+    /// A line of JSON a second to FILE (or `-`, standard output, before the summary):
+    /// elapsed time, per channel force (N), strikes, peak (dBFS, null for silence) and
+    /// limited samples; input events, rejects, losses; late events, non-finite samples,
+    /// watchdog fades.
+    #[arg(long = "status-json", value_name = "FILE|-")]
+    status_json: Option<PathBuf>,
     #[command(flatten)]
     synth: SynthArgs,
 }
@@ -153,6 +165,20 @@ fn parse_channels(s: &str) -> Result<usize, SpecError> {
 fn parse_buffer(s: &str) -> Result<u32, SpecError> {
     // 8192 fits a u32.
     spec::parse_count(s, "buffer", 16, 8192).map(|n| n as u32)
+}
+
+/// `--input`'s long help: each kind of source, then the gait spec's keys.
+fn input_help() -> String {
+    format!(
+        "Where force comes from (default, with no --input and no --interface: \
+         {DEFAULT_INPUT}, said so on stderr):\n\
+         \x20 replay:FILE.csv[@SPEED]  a force track (time_s, then newtons per sensor), at\n\
+         \x20                          SPEED times real time (default 1)\n\
+         \x20 gait:SPEC                a generated walk, as below\n\
+         \x20 serial:PORT              sensor frames from a microcontroller (--baud, --layout)\n\
+         \x20 osc:HOST:PORT            OSC messages over UDP (a VR engine, a patch)\n\n{}",
+        underfoot::force::gait::SPEC_HELP
+    )
 }
 
 /// The input of a bare `underfoot run`: a short generated walk, so that the command does
@@ -227,7 +253,20 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     for line in args.defaults_taken() {
         eprintln!("underfoot: {line}");
     }
-    let session = Session::open(&args.session()?)?;
+    let config = args.session()?;
+    // The status file is checked like every output, before anything starts: never one
+    // of the session's inputs, nor its WAV output.
+    let status_file = match &args.status_json {
+        Some(p) if p.as_os_str() != "-" => {
+            let mut inputs = config.inputs();
+            if let OutputSpec::Wav { path } = &config.output {
+                inputs.push(path);
+            }
+            Some(OutputFile::check(p, &inputs)?)
+        }
+        _ => None,
+    };
+    let session = Session::open(&config)?;
     if let (Some(path), Some(config)) = (&args.interface, session.interface()) {
         eprintln!(
             "underfoot: interface {}: {} insole sensor(s), {} servo(s) at {} Hz, {} vibration \
@@ -282,7 +321,43 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             stop.store(true, Ordering::SeqCst);
         });
     }
-    let summary = running.run(&stop, report_link)?;
+    let json: Option<Box<dyn std::io::Write>> = match (&args.status_json, &status_file) {
+        (_, Some(file)) => Some(Box::new(std::io::LineWriter::new(
+            // A log that grows while the session runs: written in place, not replaced
+            // at the end like a document.
+            std::fs::File::create(file.path())
+                .with_context(|| format!("creating the status file {}", file.path().display()))?,
+        ))),
+        (Some(_), None) => Some(Box::new(std::io::stdout())),
+        (None, None) => None,
+    };
+    let mut display = status::Display::new(!args.quiet && std::io::stderr().is_terminal(), json);
+    let summary = if display.active() {
+        let mut failed = None;
+        let display = std::cell::RefCell::new(&mut display);
+        let summary = running.run_with_status(
+            &stop,
+            |event| {
+                display.borrow().clear();
+                report_link(event);
+            },
+            status::EVERY,
+            |s| {
+                if failed.is_none()
+                    && let Err(e) = display.borrow_mut().show(s)
+                {
+                    // A status reader that went away does not stop the session.
+                    failed = Some(e);
+                }
+            },
+        )?;
+        if let Some(e) = failed {
+            eprintln!("underfoot: the status stopped: {e}");
+        }
+        summary
+    } else {
+        running.run(&stop, report_link)?
+    };
     emit(&report(&summary))?;
     match &summary.lost {
         Some(event) => bail!("input {event}; exiting (--exit-on-disconnect)"),

@@ -1,0 +1,220 @@
+//! `run`'s live status: a block of lines redrawn in place on a terminal (about 4 times a
+//! second), and a line of JSON a second for scripts (`--status-json FILE|-`).
+//!
+//! Both read the session's [`Status`], which the session fills from the engine's atomics:
+//! watching never makes the audio thread wait.
+
+use std::cell::Cell;
+use std::io::Write;
+use std::time::Duration;
+
+use serde_json::json;
+use underfoot::live::Status;
+
+/// How often the session reports: the terminal's refresh.
+pub const EVERY: Duration = Duration::from_millis(250);
+
+/// Terminal reports per JSON line: one line a second.
+const JSON_EVERY: u32 = 4;
+
+/// A level in dBFS for display, `-inf` for silence.
+fn dbfs(peak: f32) -> Option<f64> {
+    (peak > 0.0).then(|| 20.0 * f64::from(peak).log10())
+}
+
+/// The status block's lines.
+#[must_use]
+pub fn block(s: &Status) -> Vec<String> {
+    let t = &s.telemetry;
+    // Every line under 80 columns: a wrapped line would throw the redraw off.
+    let mut lines = vec![
+        format!(
+            "running {:.1} s | input: {} event(s), {} rejected, {} lost",
+            s.elapsed.as_secs_f64(),
+            s.input.events,
+            s.input.rejected,
+            s.queue_full,
+        ),
+        format!(
+            "late events {} | non-finite {} | watchdog fades {} | reconnects {}",
+            t.late, t.non_finite, t.watchdog_trips, s.input.reconnects
+        ),
+        "channel   force (N)   strikes   peak (dBFS)   limited samples".to_owned(),
+    ];
+    for (c, ch) in s.channels.iter().enumerate() {
+        lines.push(format!(
+            "{:>7}   {:>9.1}   {:>7}   {:>11}   {:>15}",
+            c + 1,
+            ch.force,
+            ch.strikes,
+            dbfs(ch.peak).map_or_else(|| "-inf".to_owned(), |d| format!("{d:.1}")),
+            ch.limited
+        ));
+    }
+    lines
+}
+
+/// One JSON status line (no newline): channel peaks are the largest since the previous
+/// line, given in `peaks`.
+#[must_use]
+pub fn json_line(s: &Status, peaks: &[f32]) -> String {
+    let t = &s.telemetry;
+    let channels: Vec<_> = s
+        .channels
+        .iter()
+        .zip(peaks)
+        .enumerate()
+        .map(|(c, (ch, &peak))| {
+            json!({
+                "channel": c + 1,
+                "force_n": ch.force,
+                "strikes": ch.strikes,
+                "peak_dbfs": dbfs(peak),
+                "limited": ch.limited,
+            })
+        })
+        .collect();
+    json!({
+        "elapsed_s": s.elapsed.as_secs_f64(),
+        "frames": t.frames,
+        "strikes": t.strikes,
+        "channels": channels,
+        "input": {
+            "events": s.input.events,
+            "rejected": s.input.rejected,
+            "skipped_bytes": s.input.skipped_bytes,
+            "disconnects": s.input.disconnects,
+            "reconnects": s.input.reconnects,
+            "lost_queue_full": s.queue_full,
+        },
+        "late_events": t.late,
+        "non_finite": t.non_finite,
+        "limited": t.limited,
+        "watchdog_fades": t.watchdog_trips,
+    })
+    .to_string()
+}
+
+/// Where the status goes, and what has been drawn.
+pub struct Display {
+    /// Redraw the block on stderr (a terminal).
+    pub block: bool,
+    /// The JSON lines' destination.
+    pub json: Option<Box<dyn Write>>,
+    /// Lines of the block now on the terminal (to move back over); shared with the
+    /// link reports, which clear the block before they print.
+    drawn: Cell<usize>,
+    reports: u32,
+    peaks: Vec<f32>,
+}
+
+impl Display {
+    /// A display; `block` only makes sense when stderr is a terminal.
+    #[must_use]
+    pub fn new(block: bool, json: Option<Box<dyn Write>>) -> Self {
+        Self {
+            block,
+            json,
+            drawn: Cell::new(0),
+            reports: 0,
+            peaks: Vec::new(),
+        }
+    }
+
+    /// Whether it shows anything (else the session need not report).
+    #[must_use]
+    pub fn active(&self) -> bool {
+        self.block || self.json.is_some()
+    }
+
+    /// Takes one status from the session.
+    ///
+    /// # Errors
+    /// The JSON destination could not be written (a closed pipe, a full disk).
+    pub fn show(&mut self, s: &Status) -> std::io::Result<()> {
+        self.peaks.resize(s.channels.len(), 0.0);
+        for (p, ch) in self.peaks.iter_mut().zip(&s.channels) {
+            *p = p.max(ch.peak);
+        }
+        if self.block {
+            let lines = block(s);
+            let mut err = std::io::stderr().lock();
+            // Back over the previous block, each line cleared: one block, redrawn.
+            let up = self.drawn.get();
+            if up > 0 {
+                write!(err, "\x1b[{up}A")?;
+            }
+            for line in &lines {
+                writeln!(err, "\x1b[2K{line}")?;
+            }
+            err.flush()?;
+            self.drawn.set(lines.len());
+        }
+        self.reports += 1;
+        if self.reports.is_multiple_of(JSON_EVERY)
+            && let Some(out) = &mut self.json
+        {
+            writeln!(out, "{}", json_line(s, &self.peaks))?;
+            out.flush()?;
+            self.peaks.iter_mut().for_each(|p| *p = 0.0);
+        }
+        Ok(())
+    }
+
+    /// Clears the block from the terminal, so that a message printed next is not drawn
+    /// over (the next status draws it again below the message).
+    pub fn clear(&self) {
+        let up = self.drawn.replace(0);
+        if self.block && up > 0 {
+            let mut err = std::io::stderr().lock();
+            let _ = write!(err, "\x1b[{up}A\x1b[J");
+            let _ = err.flush();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use underfoot::engine::ChannelLevels;
+
+    fn status() -> Status {
+        Status {
+            elapsed: Duration::from_millis(2500),
+            channels: vec![
+                ChannelLevels {
+                    force: 612.5,
+                    strikes: 3,
+                    peak: 0.25,
+                    limited: 0,
+                },
+                ChannelLevels::default(),
+            ],
+            ..Status::default()
+        }
+    }
+
+    #[test]
+    fn the_block_has_a_line_per_channel_with_levels_in_dbfs() {
+        let lines = block(&status());
+        assert_eq!(lines.len(), 5);
+        assert!(lines[0].starts_with("running 2.5 s"), "{}", lines[0]);
+        assert!(
+            lines[3].contains("612.5") && lines[3].contains("-12.0"),
+            "{}",
+            lines[3]
+        );
+        assert!(lines[4].contains("-inf"), "{}", lines[4]);
+        assert!(lines.iter().all(|l| l.len() < 80), "{lines:#?}");
+    }
+
+    #[test]
+    fn a_json_line_parses_and_silence_is_null() {
+        let line = json_line(&status(), &[0.5, 0.0]);
+        let v: serde_json::Value = serde_json::from_str(&line).unwrap();
+        assert_eq!(v["channels"][0]["strikes"], 3);
+        assert!((v["channels"][0]["peak_dbfs"].as_f64().unwrap() + 6.02).abs() < 0.01);
+        assert!(v["channels"][1]["peak_dbfs"].is_null());
+        assert!((v["elapsed_s"].as_f64().unwrap() - 2.5).abs() < 1e-9);
+    }
+}
