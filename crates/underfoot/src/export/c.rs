@@ -82,6 +82,19 @@ pub fn header(export: &Export) -> String {
     h.push_str(PRELUDE);
     let w = &mut h;
     let _ = writeln!(w, "#define UF_MATERIAL_COUNT {}u", export.materials.len());
+    // The state arrays' size: the caller sizes them without guessing.
+    let max_sections = export
+        .materials
+        .iter()
+        .map(|m| m.sections.len())
+        .max()
+        .unwrap_or(0)
+        .max(1);
+    let _ = writeln!(
+        w,
+        "/* The most sections any material here has: the size of a state array. */\n\
+         #define UF_MAX_SECTIONS {max_sections}u"
+    );
     let _ = writeln!(
         w,
         "extern const uf_material uf_materials[UF_MATERIAL_COUNT];\n"
@@ -311,6 +324,15 @@ float uf_f32_cascade(const uf_f32_section *sos, uf_f32_state *state, unsigned se
 int32_t uf_q15_cascade(const uf_q15_section *sos, uf_q15_state *state, unsigned sections, int16_t x);
 int32_t uf_q31_cascade(const uf_q31_section *sos, uf_q31_state *state, unsigned sections, int32_t x);
 
+/* A block of `n` samples through the cascade, the same as `n` calls of the one-sample
+ * function above (bit for bit); `out` may be `in`. */
+void uf_f32_cascade_block(const uf_f32_section *sos, uf_f32_state *state, unsigned sections,
+                          const float *in, float *out, unsigned n);
+void uf_q15_cascade_block(const uf_q15_section *sos, uf_q15_state *state, unsigned sections,
+                          const int16_t *in, int32_t *out, unsigned n);
+void uf_q31_cascade_block(const uf_q31_section *sos, uf_q31_state *state, unsigned sections,
+                          const int32_t *in, int32_t *out, unsigned n);
+
 /* A Q31 value truncated towards zero to Q15, for a 16-bit output: never past a ceiling. */
 int16_t uf_q31_to_q15(int32_t y);
 
@@ -467,6 +489,24 @@ int16_t uf_q15_clamp(int16_t x, int16_t ceiling) {
 int32_t uf_q31_clamp(int32_t x, int32_t ceiling) {
     int32_t c = ceiling < 0 ? 0 : ceiling;
     return x > c ? c : (x < -c ? -c : x);
+}
+
+void uf_f32_cascade_block(const uf_f32_section *sos, uf_f32_state *state, unsigned sections,
+                          const float *in, float *out, unsigned n) {
+    unsigned i;
+    for (i = 0; i < n; ++i) out[i] = uf_f32_cascade(sos, state, sections, in[i]);
+}
+
+void uf_q15_cascade_block(const uf_q15_section *sos, uf_q15_state *state, unsigned sections,
+                          const int16_t *in, int32_t *out, unsigned n) {
+    unsigned i;
+    for (i = 0; i < n; ++i) out[i] = uf_q15_cascade(sos, state, sections, in[i]);
+}
+
+void uf_q31_cascade_block(const uf_q31_section *sos, uf_q31_state *state, unsigned sections,
+                          const int32_t *in, int32_t *out, unsigned n) {
+    unsigned i;
+    for (i = 0; i < n; ++i) out[i] = uf_q31_cascade(sos, state, sections, in[i]);
 }
 
 void uf_limiter_init(uf_limiter *limiter, float ceiling, float release) {

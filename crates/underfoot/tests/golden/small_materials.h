@@ -60,6 +60,8 @@ typedef struct {
 typedef struct { float ceiling; float gain; float release; } uf_limiter;
 
 #define UF_MATERIAL_COUNT 1u
+/* The most sections any material here has: the size of a state array. */
+#define UF_MAX_SECTIONS 2u
 extern const uf_material uf_materials[UF_MATERIAL_COUNT];
 
 /* The material of that name, or a null pointer. */
@@ -73,6 +75,15 @@ void uf_q31_reset(uf_q31_state *state, unsigned sections);
 float uf_f32_cascade(const uf_f32_section *sos, uf_f32_state *state, unsigned sections, float x);
 int32_t uf_q15_cascade(const uf_q15_section *sos, uf_q15_state *state, unsigned sections, int16_t x);
 int32_t uf_q31_cascade(const uf_q31_section *sos, uf_q31_state *state, unsigned sections, int32_t x);
+
+/* A block of `n` samples through the cascade, the same as `n` calls of the one-sample
+ * function above (bit for bit); `out` may be `in`. */
+void uf_f32_cascade_block(const uf_f32_section *sos, uf_f32_state *state, unsigned sections,
+                          const float *in, float *out, unsigned n);
+void uf_q15_cascade_block(const uf_q15_section *sos, uf_q15_state *state, unsigned sections,
+                          const int16_t *in, int32_t *out, unsigned n);
+void uf_q31_cascade_block(const uf_q31_section *sos, uf_q31_state *state, unsigned sections,
+                          const int32_t *in, int32_t *out, unsigned n);
 
 /* A Q31 value truncated towards zero to Q15, for a 16-bit output: never past a ceiling. */
 int16_t uf_q31_to_q15(int32_t y);
@@ -249,6 +260,24 @@ int16_t uf_q15_clamp(int16_t x, int16_t ceiling) {
 int32_t uf_q31_clamp(int32_t x, int32_t ceiling) {
     int32_t c = ceiling < 0 ? 0 : ceiling;
     return x > c ? c : (x < -c ? -c : x);
+}
+
+void uf_f32_cascade_block(const uf_f32_section *sos, uf_f32_state *state, unsigned sections,
+                          const float *in, float *out, unsigned n) {
+    unsigned i;
+    for (i = 0; i < n; ++i) out[i] = uf_f32_cascade(sos, state, sections, in[i]);
+}
+
+void uf_q15_cascade_block(const uf_q15_section *sos, uf_q15_state *state, unsigned sections,
+                          const int16_t *in, int32_t *out, unsigned n) {
+    unsigned i;
+    for (i = 0; i < n; ++i) out[i] = uf_q15_cascade(sos, state, sections, in[i]);
+}
+
+void uf_q31_cascade_block(const uf_q31_section *sos, uf_q31_state *state, unsigned sections,
+                          const int32_t *in, int32_t *out, unsigned n) {
+    unsigned i;
+    for (i = 0; i < n; ++i) out[i] = uf_q31_cascade(sos, state, sections, in[i]);
 }
 
 void uf_limiter_init(uf_limiter *limiter, float ceiling, float release) {
