@@ -132,7 +132,7 @@ fn draw_response_panel<DB: DrawingBackend>(
         if x < title_end + 24 {
             legend_drop = 20;
             y = row_y + legend_drop as i32;
-            x = (w as i32 - 8 - widths.iter().sum::<i32>()).max(12);
+            x = x.max(12);
         }
         for (i, (c, width)) in curves.iter().zip(&widths).enumerate() {
             area.draw(&PathElement::new(vec![(x, y), (x + 20, y)], style(i)))?;

@@ -31,9 +31,9 @@ use underfoot::live::{
 use underfoot::units::{Decibels, Seconds};
 
 use crate::commands::synth::SynthArgs;
+use crate::output::emit;
 
 mod status;
-use crate::output::emit;
 
 /// Arguments of `underfoot run`.
 #[derive(Debug, Args)]
@@ -334,11 +334,12 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let mut display = status::Display::new(!args.quiet && std::io::stderr().is_terminal(), json);
     let summary = if display.active() {
         let mut failed = None;
+        // Both callbacks draw on the terminal; the session calls them one at a time.
         let display = std::cell::RefCell::new(&mut display);
         let summary = running.run_with_status(
             &stop,
             |event| {
-                display.borrow().clear();
+                display.borrow_mut().clear();
                 report_link(event);
             },
             status::EVERY,

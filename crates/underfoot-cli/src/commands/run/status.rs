@@ -4,7 +4,6 @@
 //! Both read the session's [`Status`], which the session fills from the engine's atomics:
 //! watching never makes the audio thread wait.
 
-use std::cell::Cell;
 use std::io::Write;
 use std::time::Duration;
 
@@ -101,9 +100,8 @@ pub struct Display {
     pub block: bool,
     /// The JSON lines' destination.
     pub json: Option<Box<dyn Write>>,
-    /// Lines of the block now on the terminal (to move back over); shared with the
-    /// link reports, which clear the block before they print.
-    drawn: Cell<usize>,
+    /// Lines of the block now on the terminal (to move back over).
+    drawn: usize,
     reports: u32,
     peaks: Vec<f32>,
 }
@@ -115,7 +113,7 @@ impl Display {
         Self {
             block,
             json,
-            drawn: Cell::new(0),
+            drawn: 0,
             reports: 0,
             peaks: Vec::new(),
         }
@@ -140,7 +138,7 @@ impl Display {
             let lines = block(s);
             let mut err = std::io::stderr().lock();
             // Back over the previous block, each line cleared: one block, redrawn.
-            let up = self.drawn.get();
+            let up = self.drawn;
             if up > 0 {
                 write!(err, "\x1b[{up}A")?;
             }
@@ -148,7 +146,7 @@ impl Display {
                 writeln!(err, "\x1b[2K{line}")?;
             }
             err.flush()?;
-            self.drawn.set(lines.len());
+            self.drawn = lines.len();
         }
         self.reports += 1;
         if self.reports.is_multiple_of(JSON_EVERY)
@@ -163,8 +161,8 @@ impl Display {
 
     /// Clears the block from the terminal, so that a message printed next is not drawn
     /// over (the next status draws it again below the message).
-    pub fn clear(&self) {
-        let up = self.drawn.replace(0);
+    pub fn clear(&mut self) {
+        let up = std::mem::take(&mut self.drawn);
         if self.block && up > 0 {
             let mut err = std::io::stderr().lock();
             let _ = write!(err, "\x1b[{up}A\x1b[J");

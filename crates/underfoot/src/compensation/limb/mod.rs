@@ -72,6 +72,32 @@ impl LimbParams {
         b2_m2: 1.5e3,
     };
 
+    /// Table 1's mean user and a user one standard deviation below and above it in
+    /// every parameter: the spread the compensation paper measured, for tests and
+    /// simulations.
+    pub const TABLE1_SPREAD: [(&'static str, Self); 3] = {
+        let (m, s) = (Self::TABLE1_MEAN, Self::TABLE1_STD);
+        [
+            ("mean", m),
+            (
+                "mean - std",
+                Self {
+                    b3_k3: m.b3_k3 - s.b3_k3,
+                    k2_m2: m.k2_m2 - s.k2_m2,
+                    b2_m2: m.b2_m2 - s.b2_m2,
+                },
+            ),
+            (
+                "mean + std",
+                Self {
+                    b3_k3: m.b3_k3 + s.b3_k3,
+                    k2_m2: m.k2_m2 + s.k2_m2,
+                    b2_m2: m.b2_m2 + s.b2_m2,
+                },
+            ),
+        ]
+    };
+
     /// The leg's time constant.
     #[must_use]
     pub fn tau(&self) -> Seconds {

@@ -8,29 +8,6 @@ fn model(p: LimbParams) -> LimbModel {
     LimbModel::new(p, DEFAULT_G2, 1.0).unwrap()
 }
 
-fn users() -> Vec<(&'static str, LimbParams)> {
-    let (m, s) = (LimbParams::TABLE1_MEAN, LimbParams::TABLE1_STD);
-    vec![
-        ("mean", m),
-        (
-            "mean - std",
-            LimbParams {
-                b3_k3: m.b3_k3 - s.b3_k3,
-                k2_m2: m.k2_m2 - s.k2_m2,
-                b2_m2: m.b2_m2 - s.b2_m2,
-            },
-        ),
-        (
-            "mean + std",
-            LimbParams {
-                b3_k3: m.b3_k3 + s.b3_k3,
-                k2_m2: m.k2_m2 + s.k2_m2,
-                b2_m2: m.b2_m2 + s.b2_m2,
-            },
-        ),
-    ]
-}
-
 #[test]
 fn model_limits() {
     let m = model(LimbParams::TABLE1_MEAN);
@@ -61,7 +38,7 @@ fn model_limits() {
 
 #[test]
 fn discretised_limb_matches_model() {
-    for (name, p) in users() {
+    for (name, p) in LimbParams::TABLE1_SPREAD {
         let m = model(p);
         let sos = m.sos(RATE, p.skin_resonance()).unwrap();
         assert!(sos.is_stable());
@@ -79,7 +56,7 @@ fn discretised_limb_matches_model() {
 
 #[test]
 fn compensation_inverts_the_limb_in_band() {
-    for (name, p) in users() {
+    for (name, p) in LimbParams::TABLE1_SPREAD {
         let m = model(p);
         let zc = m.compensation(RATE, BAND).unwrap();
         assert!(zc.is_stable());
@@ -133,7 +110,7 @@ fn non_hurwitz_limb_is_refused() {
 
 #[test]
 fn noiseless_fit_recovers_the_model_exactly() {
-    for (name, p) in users() {
+    for (name, p) in LimbParams::TABLE1_SPREAD {
         let m = LimbModel::new(p, DEFAULT_G2, 0.3).unwrap();
         let freqs = BAND.log_grid(128);
         let y: Vec<f64> = freqs

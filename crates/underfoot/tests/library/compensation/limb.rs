@@ -13,29 +13,6 @@ fn model(p: LimbParams) -> LimbModel {
     LimbModel::new(p, DEFAULT_G2, 1.0).unwrap()
 }
 
-fn users() -> Vec<(&'static str, LimbParams)> {
-    let (m, s) = (LimbParams::TABLE1_MEAN, LimbParams::TABLE1_STD);
-    vec![
-        ("mean", m),
-        (
-            "mean - std",
-            LimbParams {
-                b3_k3: m.b3_k3 - s.b3_k3,
-                k2_m2: m.k2_m2 - s.k2_m2,
-                b2_m2: m.b2_m2 - s.b2_m2,
-            },
-        ),
-        (
-            "mean + std",
-            LimbParams {
-                b3_k3: m.b3_k3 + s.b3_k3,
-                k2_m2: m.k2_m2 + s.k2_m2,
-                b2_m2: m.b2_m2 + s.b2_m2,
-            },
-        ),
-    ]
-}
-
 #[test]
 fn simulated_user_measures_as_its_oracle() {
     let sweep = Sweep::new(SweepConfig::new(RATE)).unwrap();
@@ -86,7 +63,10 @@ fn measured_ratio_at(p: LimbParams, seed: u64, noise_db: f64) -> (Vec<Hz>, Vec<f
 #[test]
 fn acceptance_fit_recovers_simulated_users_from_noisy_sweeps() {
     let mut failures = Vec::new();
-    for ((name, p), seed) in users().into_iter().flat_map(|u| [(u, 7), (u, 8)]) {
+    for ((name, p), seed) in LimbParams::TABLE1_SPREAD
+        .into_iter()
+        .flat_map(|u| [(u, 7), (u, 8)])
+    {
         let m = model(p);
         let skin = BAND
             .log_grid(256)
