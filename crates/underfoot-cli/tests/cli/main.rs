@@ -15,6 +15,7 @@ mod files;
 mod fit_cmd;
 mod library_cmd;
 mod live_offline;
+mod readme;
 mod render_cmd;
 mod run_cmd;
 mod serial_link;
