@@ -674,3 +674,350 @@ fn jack_live_walk_plays_as_the_offline_render() {
         );
     }
 }
+
+/// The JACK ports that exist now (the server named by `JACK_DEFAULT_SERVER`).
+#[cfg(feature = "jack")]
+fn jack_ports() -> Vec<String> {
+    let listed = std::process::Command::new("jack_lsp")
+        .env("JACK_NO_START_SERVER", "1")
+        .output()
+        .expect("jack_lsp");
+    String::from_utf8_lossy(&listed.stdout)
+        .lines()
+        .map(|l| l.trim().to_owned())
+        .collect()
+}
+
+/// The port that appeared since `before`, ending in `suffix` (cpal's `out_0` or `in_0`).
+#[cfg(feature = "jack")]
+fn new_port(before: &[String], suffix: &str) -> String {
+    let t0 = Instant::now();
+    loop {
+        let now = jack_ports();
+        if let Some(p) = now
+            .iter()
+            .find(|p| !before.contains(p) && p.ends_with(suffix))
+        {
+            return p.clone();
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(5),
+            "no new port *{suffix} among {now:?}"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+#[cfg(feature = "jack")]
+fn jack_connect(from: &str, to: &str) {
+    let status = std::process::Command::new("jack_connect")
+        .env("JACK_NO_START_SERVER", "1")
+        .args([from, to])
+        .status()
+        .expect("jack_connect");
+    assert!(status.success(), "jack_connect {from} {to}: {status}");
+}
+
+/// Online adaptation end to end through a JACK server: the engine plays a walk on gravel
+/// through a flat equalizer (the device is the server's wire); its output port is patched
+/// into a simulated leg, Table 1's mean user (a pair of JACK clients of its own: the limb
+/// model's sections between an input and an output port, with sensor noise), whose output
+/// is patched back into the accelerometer input.
+/// The adaptation loop ([`underfoot::live::adapt`], wired exactly as a session wires it:
+/// the drive tap after the engine in the output callback, the sensor tap in the input
+/// callback, the loop on this thread with the engine's controller) must find the delay
+/// through both streams and the plant, and bring the deviation from flat, measured against
+/// the plant's true response, below 1 dB within 30 s of walking; the audio threads
+/// allocate nothing. On the large-period server of the loopback sweep (see it).
+#[cfg(feature = "jack")]
+#[test]
+fn jack_loopback_adaptation_flattens_a_simulated_leg_within_30_s() {
+    use underfoot::compensation::chain::Compensation;
+    use underfoot::compensation::equalizer::{EqualizerConfig, Realisation, SpectralWeights};
+    use underfoot::compensation::limb::{DEFAULT_G2, LimbModel, LimbParams};
+    use underfoot::engine::{self, EngineConfig, MaterialBank, TimedEvent};
+    use underfoot::force::gait::{self, GaitConfig, nominal_step};
+    use underfoot::io::audio::AudioInput;
+    use underfoot::io::replay::ReplaySource;
+    use underfoot::io::{EventSource, SourceState};
+    use underfoot::live::adapt::{AdaptParts, AdaptSettings};
+    use underfoot::material::builtin::builtin;
+    use underfoot::signal::noise::SplitMix64;
+    use underfoot::synthesis::VoiceConfig;
+    use underfoot::units::{Band, Hz, Newtons};
+
+    if std::env::var("UNDERFOOT_JACK_LOOPBACK").as_deref() != Ok("1") {
+        println!(
+            "skipped: set UNDERFOOT_JACK_LOOPBACK=1 (see jack_loopback_sweep_is_flat_and_aligned)"
+        );
+        return;
+    }
+    let _guard = one_at_a_time();
+    let rate = SampleRate(48_000);
+    let weights = SpectralWeights::flat(EqualizerConfig::default(), rate).unwrap();
+    let bank = MaterialBank::prepare(
+        builtin(),
+        rate,
+        &VoiceConfig::default(),
+        &nominal_step(70.0, 1.8, rate.hz()),
+        Newtons::weight_of(70.0),
+    )
+    .unwrap();
+    let slot = bank.slot("gravel").unwrap();
+    let config = EngineConfig {
+        rate,
+        channels: 1,
+        compensation: Compensation {
+            equalizer: Some((weights.clone(), Realisation::Bank)),
+            limb: None,
+        },
+        ..EngineConfig::default()
+    };
+    let (mut ctl, mut eng) = engine::build(&config, bank, &[slot]).unwrap();
+    let parts = AdaptParts::new(
+        &AdaptSettings::default(),
+        &weights,
+        rate,
+        ctl.telemetry_handle(),
+    )
+    .unwrap();
+    let (mut drive, mut sensor, mut adapt) = (parts.drive, parts.sensor, parts.adapt);
+    ctl.set_equalizer_weights(0, &adapt.weights().gains_db)
+        .unwrap();
+
+    // The leg, and its true response to measure against.
+    let limb = LimbModel::new(LimbParams::TABLE1_MEAN, DEFAULT_G2, 1.0).unwrap();
+    let sos = limb
+        .sos(
+            rate,
+            Hz(limb.params.skin_resonance().0.min(0.4 * rate.hz())),
+        )
+        .unwrap();
+    let truth = sos.clone();
+    let deviation = |w: &SpectralWeights| {
+        let v: Vec<f64> = Band::new(40.0, 1024.0)
+            .log_grid(128)
+            .into_iter()
+            .map(|f| w.gain_db_at(f) + 20.0 * truth.response(rate.omega(f)).norm().log10())
+            .collect();
+        let mean = v.iter().sum::<f64>() / v.len() as f64;
+        (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / v.len() as f64).sqrt()
+    };
+    let initial = deviation(adapt.weights());
+
+    // The session's two streams, their callbacks marked as audio threads.
+    let ports = jack_ports();
+    let output = AudioOutput::start(&jack_config(1), move |out: &mut [f32], channels: usize| {
+        ON_AUDIO_THREAD.with(|f| f.set(true));
+        eng.process(out, channels);
+        drive.push(out, channels);
+    })
+    .expect("the engine on JACK");
+    let engine_out = new_port(&ports, "out_0");
+    let ports = jack_ports();
+    let input = AudioInput::start(&jack_config(1), move |samples: &[f32], channels: usize| {
+        ON_AUDIO_THREAD.with(|f| f.set(true));
+        sensor.push(samples, channels);
+    })
+    .expect("the accelerometer input on JACK");
+    let accel_in = new_port(&ports, "in_0");
+
+    // The plant: what its input port receives goes through the leg's sections, plus
+    // sensor noise, out of its output port in the same JACK cycle (the graph runs the
+    // input client first), through a ring.
+    let (mut leg_tx, mut leg_rx) = rtrb::RingBuffer::<f32>::new(1 << 16);
+    let ports = jack_ports();
+    let leg_in = AudioInput::start(&jack_config(1), move |samples: &[f32], channels: usize| {
+        for frame in samples.chunks_exact(channels) {
+            let _ = leg_tx.push(frame[0]);
+        }
+    })
+    .expect("the plant's input");
+    let plant_in = new_port(&ports, "in_0");
+    let ports = jack_ports();
+    let mut state = vec![[0.0f64; 2]; sos.sections.len()];
+    let mut wide = vec![0.0f64; 8192];
+    let mut rng = SplitMix64::new(3);
+    let leg_out = AudioOutput::start(&jack_config(1), move |out: &mut [f32], channels: usize| {
+        let frames = (out.len() / channels).min(wide.len());
+        for w in &mut wide[..frames] {
+            *w = f64::from(leg_rx.pop().unwrap_or(0.0));
+        }
+        sos.filter_with_state(&mut wide[..frames], &mut state);
+        for (frame, w) in out.chunks_exact_mut(channels).zip(&wide[..frames]) {
+            frame.fill((w + 1e-4 * rng.normal()) as f32);
+        }
+    })
+    .expect("the plant's output");
+    let plant_out = new_port(&ports, "out_0");
+    jack_connect(&engine_out, &plant_in);
+    jack_connect(&plant_out, &accel_in);
+
+    // Walk for 30 s, polling the loop as a session does.
+    let track = gait::generate(&GaitConfig {
+        steps: 60,
+        channels: 1,
+        ..GaitConfig::default()
+    })
+    .unwrap()
+    .track;
+    let mut source = ReplaySource::new(track, 1.0).unwrap();
+    let walking = Instant::now();
+    let mut history: Vec<(f64, f64)> = Vec::new();
+    let mut full = 0;
+    while walking.elapsed() < Duration::from_secs(30) {
+        let state = source
+            .poll(Duration::from_millis(20), &mut |e| {
+                if ctl.send(TimedEvent::now(e)).is_err() {
+                    full += 1;
+                }
+            })
+            .unwrap();
+        assert_eq!(state, SourceState::Open, "the walk ended early");
+        let before = adapt.status().updates;
+        adapt.poll(&mut ctl);
+        ctl.collect();
+        if adapt.status().updates > before {
+            history.push((walking.elapsed().as_secs_f64(), deviation(adapt.weights())));
+        }
+    }
+    let allocations = AUDIO_THREAD_ALLOCATIONS.load(Ordering::Relaxed);
+    let out_stats = output.stop();
+    let in_stats = input.stop();
+    leg_in.stop();
+    leg_out.stop();
+    let status = adapt.status();
+    let t = ctl.telemetry();
+    let every_5s: Vec<String> = history
+        .windows(2)
+        .filter(|w| (w[0].0 / 5.0).floor() < (w[1].0 / 5.0).floor())
+        .map(|w| format!("{:.1} s: {:.2} dB", w[1].0, w[1].1))
+        .collect();
+    // From here on below 1 dB.
+    let settled = history
+        .iter()
+        .rposition(|&(_, d)| d >= 1.0)
+        .map_or(history.first(), |i| history.get(i + 1))
+        .map(|h| h.0);
+    println!(
+        "JACK adaptation: initial {initial:.2} dB; {every_5s:?}; below 1 dB from {settled:?} s; \
+         final {:?}; {status:?}; engine applied {} refused {}; output {out_stats:?}; input \
+         {in_stats:?}",
+        history.last(),
+        t.equalizer_updates,
+        t.equalizer_refused
+    );
+    assert_eq!(full, 0);
+    assert!(
+        initial > 2.0,
+        "the leg must need equalizing: {initial:.2} dB"
+    );
+    assert!(status.delay.is_some(), "the delay was never found");
+    let last = history.last().expect("no update in 30 s").1;
+    assert!(last < 1.0, "{last:.2} dB from flat after 30 s of walking");
+    assert!(settled.is_some_and(|t| t <= 30.0));
+    assert_eq!(t.equalizer_refused, 0);
+    // Every update sent was applied (with the starting weights), but for the last one,
+    // which may still have been in the queue when the output stopped.
+    let sent = status.updates + 1 - status.queue_full;
+    assert!(
+        (sent - 1..=sent).contains(&t.equalizer_updates),
+        "{sent} sent"
+    );
+    assert_eq!(allocations, 0, "the audio threads allocated");
+}
+
+/// The same adaptation wired by a live [`Session`](underfoot::live::Session), as `underfoot
+/// run --eq FILE --adapt` runs it, with the session's own output port patched straight
+/// into its accelerometer input: a wire, so the delay found is the two streams' start-up
+/// offset (the input opens first: a few periods), and the weights, which start flat, must
+/// stay flat (the adaptation does not wander on a device that needs nothing).
+#[cfg(feature = "jack")]
+#[test]
+fn jack_loopback_session_adapts_through_its_own_streams() {
+    use std::sync::atomic::AtomicBool;
+    use underfoot::compensation::chain::Compensation;
+    use underfoot::compensation::equalizer::{EqualizerConfig, Realisation, SpectralWeights};
+    use underfoot::engine::{EngineConfig, MaterialBank};
+    use underfoot::force::gait::nominal_step;
+    use underfoot::io::spec::OutputSpec;
+    use underfoot::live::adapt::AdaptSettings;
+    use underfoot::live::{Session, SessionConfig, SessionInput};
+    use underfoot::material::builtin::builtin;
+    use underfoot::synthesis::VoiceConfig;
+    use underfoot::units::{Newtons, Seconds};
+
+    if std::env::var("UNDERFOOT_JACK_LOOPBACK").as_deref() != Ok("1") {
+        println!(
+            "skipped: set UNDERFOOT_JACK_LOOPBACK=1 (see jack_loopback_sweep_is_flat_and_aligned)"
+        );
+        return;
+    }
+    let _guard = one_at_a_time();
+    let rate = SampleRate(48_000);
+    let weights = SpectralWeights::flat(EqualizerConfig::default(), rate).unwrap();
+    let bank = MaterialBank::prepare(
+        builtin(),
+        rate,
+        &VoiceConfig::default(),
+        &nominal_step(70.0, 1.8, rate.hz()),
+        Newtons::weight_of(70.0),
+    )
+    .unwrap();
+    let slot = bank.slot("gravel").unwrap();
+    let engine = EngineConfig {
+        rate,
+        channels: 1,
+        compensation: Compensation {
+            equalizer: Some((weights, Realisation::Bank)),
+            limb: None,
+        },
+        ..EngineConfig::default()
+    };
+    let config = SessionConfig {
+        host: "jack".to_owned(),
+        duration: Some(Seconds(14.0)),
+        adapt: Some(AdaptSettings::default()),
+        ..SessionConfig::new(
+            SessionInput::Spec("gait:steps=30,channels=1".parse().unwrap()),
+            OutputSpec::Audio { device: None },
+        )
+    };
+    let session = Session::open(&config).unwrap();
+    let ports = jack_ports();
+    let running = session
+        .start(&engine, bank, &[slot])
+        .expect("the session on JACK");
+    jack_connect(&new_port(&ports, "out_0"), &new_port(&ports, "in_0"));
+    let summary = running
+        .run(&AtomicBool::new(false), |e| {
+            panic!("a walk has no link: {e}")
+        })
+        .unwrap();
+    let (status, adapted) = summary.adapt.expect("the adaptation's report");
+    let t = &summary.telemetry;
+    let spread = {
+        let band = adapted.corrected();
+        let g: Vec<f64> = band.map(|k| adapted.gains_db[k]).collect();
+        g.iter().fold(0.0f64, |m, v| m.max(v.abs()))
+    };
+    println!(
+        "JACK session adaptation on a wire: {status:?}; weights within ±{spread:.2} dB; \
+         engine applied {} refused {}; output {:?}",
+        t.equalizer_updates, t.equalizer_refused, summary.output
+    );
+    let delay = status.delay.expect("the delay was never found");
+    // A multiple of the period: the wire adds nothing to the streams' offset.
+    assert!(
+        (0..=24_000).contains(&delay) && delay % 1024 == 0,
+        "a wire delays by {delay} samples"
+    );
+    assert!(status.updates > 0, "no update in 14 s");
+    assert!(
+        spread < 0.5,
+        "the weights wandered by {spread:.2} dB on a wire"
+    );
+    assert_eq!(t.equalizer_refused, 0);
+    // The session stops the engine after its last poll: every update was applied.
+    assert_eq!(t.equalizer_updates, status.updates + 1 - status.queue_full);
+}

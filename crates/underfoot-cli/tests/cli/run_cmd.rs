@@ -59,6 +59,67 @@ fn run_rejects_bad_inputs_and_outputs_clearly() {
     assert!(assert_error(&o).contains("/dev/does-not-exist"));
 }
 
+#[test]
+fn adaptation_is_refused_clearly_where_it_cannot_run() {
+    // Without an equalizer to adapt, or its options without --adapt: usage errors.
+    let o = run(&["run", "--adapt", "--output", "null"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--eq"), "{}", stderr(&o));
+    let o = run(&["run", "--adapt-input", "1", "--output", "null"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--adapt"), "{}", stderr(&o));
+
+    // With one, on an output that is not a sound card: refused before anything plays,
+    // and the adapted file is not written.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let device = dir.path().join("tile.json");
+    let eq = dir.path().join("eq.json");
+    let adapted = dir.path().join("adapted.json");
+    assert_ok(&run(&["calibrate", "sweep", "--out", s(&device)]));
+    assert_ok(&run(&[
+        "calibrate",
+        "equalize",
+        "--device",
+        s(&device),
+        "--passes",
+        "1",
+        "--out",
+        s(&eq),
+    ]));
+    let o = run(&[
+        "run",
+        "--eq",
+        s(&eq),
+        "--adapt",
+        "--adapt-out",
+        s(&adapted),
+        "--input",
+        "gait:steps=1",
+        "--output",
+        "null",
+    ]);
+    let message = assert_error(&o);
+    assert!(
+        message.contains("adaptation needs an audio output"),
+        "{message}"
+    );
+    assert!(!stdout(&o).contains("strike"), "it played: {}", stdout(&o));
+    assert!(!adapted.exists());
+    // The adapted file may not be the equalizer it starts from.
+    let o = run(&[
+        "run",
+        "--eq",
+        s(&eq),
+        "--adapt",
+        "--adapt-out",
+        s(&eq),
+        "--output",
+        "audio",
+    ]);
+    assert_ne!(o.status.code(), Some(0));
+    assert!(stderr(&o).contains(s(&eq)), "{}", stderr(&o));
+}
+
 /// The commented example interface configurations, at the workspace root.
 fn example(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

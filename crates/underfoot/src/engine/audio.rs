@@ -10,7 +10,7 @@ use crate::units::SampleRate;
 
 use super::channel::Channel;
 use super::clock::SensorClock;
-use super::controller::Command;
+use super::controller::{Command, Retired};
 use super::{Event, OutputStage, Telemetry};
 
 /// The audio half. Move it into the audio callback.
@@ -32,7 +32,7 @@ pub struct Engine {
     /// Events waiting for their frame, sorted by frame; capacity fixed at build.
     pub(super) pending: Vec<(u64, Event)>,
     pub(super) commands: rtrb::Consumer<Command>,
-    pub(super) retired: rtrb::Producer<Box<PreparedMaterial>>,
+    pub(super) retired: rtrb::Producer<Retired>,
     pub(super) telemetry: Arc<Telemetry>,
     pub(super) scratch: Vec<f32>,
     pub(super) peak: f32,
@@ -90,6 +90,14 @@ impl Engine {
         self.frame
     }
 
+    /// Hands `old` back to the controller to be freed there.
+    fn retire(&mut self, old: Retired) {
+        if let Err(rtrb::PushError::Full(old)) = self.retired.push(old) {
+            // Never free on the audio thread: leak rather than deallocate.
+            std::mem::forget(old);
+        }
+    }
+
     fn drain_commands(&mut self, frames: usize) {
         while let Ok(command) = self.commands.pop() {
             match command {
@@ -115,11 +123,16 @@ impl Engine {
                 Command::Replace(slot, material) => {
                     if let Some(old) = self.bank.get_mut(usize::from(slot)) {
                         let old = std::mem::replace(old, material);
-                        if let Err(rtrb::PushError::Full(old)) = self.retired.push(old) {
-                            // Never free on the audio thread: leak rather than deallocate.
-                            std::mem::forget(old);
-                        }
+                        self.retire(Retired::Material(old));
                     }
+                }
+                Command::Equalize(channel, gains) => {
+                    let applied = self
+                        .stages
+                        .get_mut(usize::from(channel))
+                        .is_some_and(|stage| stage.set_equalizer_weights(&gains));
+                    self.telemetry.count_equalizer(applied);
+                    self.retire(Retired::Weights(gains));
                 }
                 Command::Stop => self.fader.fade_out(),
             }

@@ -11,13 +11,21 @@ use super::{EngineError, Telemetry, TelemetrySnapshot, TimedEvent};
 pub(super) enum Command {
     Event(TimedEvent),
     Replace(u16, Box<PreparedMaterial>),
+    /// New equalizer weights for a channel (dB per bin, the shape it was built with).
+    Equalize(u16, Box<[f64]>),
     Stop,
+}
+
+/// What the audio thread hands back to be freed elsewhere.
+pub(super) enum Retired {
+    Material(Box<PreparedMaterial>),
+    Weights(Box<[f64]>),
 }
 
 /// The control half: sends events and materials, reads telemetry, frees retired materials.
 pub struct Controller {
     pub(super) commands: rtrb::Producer<Command>,
-    pub(super) retired: rtrb::Consumer<Box<PreparedMaterial>>,
+    pub(super) retired: rtrb::Consumer<Retired>,
     pub(super) telemetry: Arc<Telemetry>,
     pub(super) names: Vec<String>,
     pub(super) rate: SampleRate,
@@ -58,6 +66,36 @@ impl Controller {
             .map_err(|_| EngineError::QueueFull)
     }
 
+    /// Retunes channel `channel`'s equalizer to `gains_db` (dB per bin, as many bins as
+    /// the equalizer it was built with: [`SpectralWeights::gains_db`]), applied smoothly
+    /// from the engine's next block ([`EqualizerFilter::set_weights`]). Weights of another
+    /// shape, non-finite ones, or a channel without an equalizer are refused on the audio
+    /// thread and counted ([`TelemetrySnapshot::equalizer_refused`]). Allocates the copy
+    /// that crosses the queue; the engine sends it back to be freed by
+    /// [`collect`](Self::collect).
+    ///
+    /// [`SpectralWeights::gains_db`]: crate::compensation::equalizer::SpectralWeights::gains_db
+    /// [`EqualizerFilter::set_weights`]: crate::compensation::equalizer::EqualizerFilter::set_weights
+    ///
+    /// # Errors
+    /// [`EngineError::QueueFull`], or [`EngineError::InvalidConfig`] for a channel beyond
+    /// the engine.
+    pub fn set_equalizer_weights(
+        &mut self,
+        channel: u16,
+        gains_db: &[f64],
+    ) -> Result<(), EngineError> {
+        if usize::from(channel) >= self.telemetry.channels() {
+            return Err(EngineError::InvalidConfig(format!(
+                "channel {channel} is beyond the engine's {}",
+                self.telemetry.channels()
+            )));
+        }
+        self.commands
+            .push(Command::Equalize(channel, gains_db.into()))
+            .map_err(|_| EngineError::QueueFull)
+    }
+
     /// Starts the shut-down fade; [`TelemetrySnapshot::stopped`] turns true when it ends.
     ///
     /// # Errors
@@ -68,11 +106,16 @@ impl Controller {
             .map_err(|_| EngineError::QueueFull)
     }
 
-    /// Frees the materials the engine has retired. Call now and then from a non-audio
-    /// thread.
+    /// Frees what the engine has retired (replaced materials, applied equalizer weights).
+    /// Call now and then from a non-audio thread.
     pub fn collect(&mut self) -> usize {
         let mut n = 0;
-        while self.retired.pop().is_ok() {
+        while let Ok(retired) = self.retired.pop() {
+            // Freed here, on this thread, whichever it is.
+            match retired {
+                Retired::Material(material) => drop(material),
+                Retired::Weights(weights) => drop(weights),
+            }
             n += 1;
         }
         n

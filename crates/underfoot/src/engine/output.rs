@@ -39,6 +39,17 @@ impl OutputStage {
         }
     }
 
+    /// Retunes the equalizer ([`EqualizerFilter::set_weights`]); `false` (nothing changed)
+    /// without one, or for weights it refuses. Never allocates.
+    ///
+    /// [`EqualizerFilter::set_weights`]: crate::compensation::equalizer::EqualizerFilter::set_weights
+    pub fn set_equalizer_weights(&mut self, gains_db: &[f64]) -> bool {
+        self.compensation
+            .as_mut()
+            .and_then(CompensationChain::equalizer_mut)
+            .is_some_and(|eq| eq.set_weights(gains_db))
+    }
+
     /// Input arrived (a force reading).
     pub fn feed(&mut self) {
         self.watchdog.feed();

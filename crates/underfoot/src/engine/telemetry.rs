@@ -2,7 +2,7 @@
 
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 
-use crate::units::Seconds;
+use crate::units::{Newtons, Seconds};
 
 use super::ClockAnchor;
 
@@ -22,6 +22,8 @@ pub struct Telemetry {
     pub(super) anchor_frame: AtomicU64,
     pub(super) anchor_time_bits: AtomicU64,
     pub(super) resyncs: AtomicU64,
+    pub(super) equalizer_updates: AtomicU64,
+    pub(super) equalizer_refused: AtomicU64,
     /// One meter per engine channel, allocated with the engine.
     pub(super) channels: Box<[ChannelMeter]>,
 }
@@ -84,6 +86,17 @@ impl Telemetry {
         self.channels.len()
     }
 
+    /// Channel `c`'s last total force, without taking its levels (the peak is left for
+    /// [`take_channel`](Self::take_channel)'s reader); `None` beyond the engine's
+    /// channels. Lock-free: an audio callback may read it.
+    #[must_use]
+    pub fn force(&self, c: usize) -> Option<Newtons> {
+        let m = self.channels.get(c)?;
+        Some(Newtons(f64::from(f32::from_bits(
+            m.force_bits.load(Ordering::Relaxed),
+        ))))
+    }
+
     pub(super) fn meter_force(&self, c: usize, newtons: f32) {
         if let Some(m) = self.channels.get(c) {
             m.force_bits.store(newtons.to_bits(), Ordering::Relaxed);
@@ -115,6 +128,8 @@ impl Default for Telemetry {
             anchor_frame: AtomicU64::new(NO_ANCHOR),
             anchor_time_bits: AtomicU64::new(0),
             resyncs: AtomicU64::new(0),
+            equalizer_updates: AtomicU64::new(0),
+            equalizer_refused: AtomicU64::new(0),
             channels: Box::new([]),
         }
     }
@@ -152,6 +167,10 @@ pub struct TelemetrySnapshot {
     pub sensor_clock: Option<ClockAnchor>,
     /// Times the sensor clock re-anchored (a jump, or a drift beyond its budget).
     pub resyncs: u64,
+    /// Equalizer weights applied ([`Controller::set_equalizer_weights`](super::Controller::set_equalizer_weights)).
+    pub equalizer_updates: u64,
+    /// Equalizer weights refused: another shape, non-finite, or no equalizer on the channel.
+    pub equalizer_refused: u64,
 }
 
 impl Telemetry {
@@ -160,6 +179,15 @@ impl Telemetry {
         if let Some(m) = self.channels.get(channel) {
             m.strikes.fetch_add(1, Ordering::Relaxed);
         }
+    }
+
+    pub(super) fn count_equalizer(&self, applied: bool) {
+        let counter = if applied {
+            &self.equalizer_updates
+        } else {
+            &self.equalizer_refused
+        };
+        counter.fetch_add(1, Ordering::Relaxed);
     }
 
     pub(super) fn count_rejected(&self) {
@@ -190,6 +218,8 @@ impl Telemetry {
                 }),
             },
             resyncs: self.resyncs.load(Ordering::Relaxed),
+            equalizer_updates: self.equalizer_updates.load(Ordering::Relaxed),
+            equalizer_refused: self.equalizer_refused.load(Ordering::Relaxed),
         }
     }
 }

@@ -90,6 +90,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+pub mod adapt;
 mod input;
 mod output;
 pub mod paced;
@@ -163,4 +164,25 @@ pub enum LiveError {
     /// The paced output's thread panicked.
     #[error("the output thread panicked")]
     OutputPanicked,
+    /// Adaptation was asked of an output that is not a sound card: it needs the
+    /// accelerometer on the same device's clock.
+    #[error(
+        "adaptation needs an audio output (--output audio[:DEVICE]), with the \
+         accelerometer on an input of the same host"
+    )]
+    AdaptNeedsAudio,
+    /// Adaptation was asked without an equalizer to adapt.
+    #[error("adaptation needs an equalizer to start from (--eq FILE, from `calibrate equalize`)")]
+    AdaptNeedsEqualizer,
+    /// The channel to adapt is not one the engine plays.
+    #[error("--adapt-channel {channel}: the session plays {channels} channel(s), 0 to {}", channels.saturating_sub(1))]
+    AdaptChannel {
+        /// The channel asked for.
+        channel: u16,
+        /// The engine's channels.
+        channels: usize,
+    },
+    /// The equalizer's weights or the adaptation's settings are refused.
+    #[error("the equalizer cannot adapt")]
+    Adapt(#[source] crate::compensation::CompensationError),
 }

@@ -14,6 +14,7 @@ use crate::io::wav::{WavFormat, WavSink};
 use crate::units::SampleRate;
 
 use super::LiveError;
+use super::adapt::DriveTap;
 use super::paced::{PacedDevice, PacedReport};
 
 /// How often a `wav:` recording is brought up to date on disk: a killed session loses at
@@ -104,6 +105,8 @@ pub(super) struct Start<'a> {
     pub buffer: Option<u32>,
     pub channels: usize,
     pub rate: SampleRate,
+    /// The adaptation's tap on the drive (an audio output only).
+    pub tap: Option<DriveTap>,
 }
 
 impl Output {
@@ -116,10 +119,15 @@ impl Output {
             buffer,
             channels,
             rate,
+            tap,
         } = start;
         if let OutputSpec::Audio { device } = spec {
-            return start_audio(device.as_deref(), host, buffer, channels, rate, engine);
+            return start_audio(device.as_deref(), host, buffer, channels, rate, engine, tap);
         }
+        debug_assert!(
+            tap.is_none(),
+            "adaptation is refused without an audio output"
+        );
         let sink = match wav {
             Some(out) => Some(WavSink::live(
                 out,
@@ -189,6 +197,7 @@ fn start_audio(
     channels: usize,
     rate: SampleRate,
     mut engine: Engine,
+    mut tap: Option<DriveTap>,
 ) -> Result<(Output, OutputInfo), LiveError> {
     use crate::io::audio::{AudioConfig, AudioOutput};
     let config = AudioConfig {
@@ -204,6 +213,9 @@ fn start_audio(
     };
     let output = AudioOutput::start(&config, move |out: &mut [f32], device_channels| {
         engine.process(out, device_channels);
+        if let Some(tap) = &mut tap {
+            tap.push(out, device_channels);
+        }
     })?;
     let info = OutputInfo::Audio(output.info().clone());
     Ok((Output::Audio(output), info))
@@ -217,6 +229,7 @@ fn start_audio(
     _channels: usize,
     _rate: SampleRate,
     _engine: Engine,
+    _tap: Option<DriveTap>,
 ) -> Result<(Output, OutputInfo), LiveError> {
     Err(LiveError::NoAudio)
 }

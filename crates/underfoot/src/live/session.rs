@@ -7,6 +7,7 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use crate::atomic_file::OutputFile;
+use crate::compensation::equalizer::SpectralWeights;
 use crate::engine::{
     self, ChannelLevels, Controller, EngineConfig, MaterialBank, TelemetrySnapshot, TimedEvent,
 };
@@ -18,6 +19,7 @@ use crate::sim::{SimulatedReport, SimulatorHandle};
 use crate::units::Seconds;
 
 use super::LiveError;
+use super::adapt::{AdaptLoop, AdaptSettings, AdaptStatus, DriveTap};
 use super::input::{self, Input};
 use super::output::{Output, OutputInfo, OutputReport, Start};
 
@@ -90,6 +92,9 @@ pub struct SessionConfig {
     /// (a `replay:a@2` written for a track named `a@2`): a `wav:` output may be none of
     /// them.
     pub reads: Vec<PathBuf>,
+    /// Adapt the equalizer while the user walks, from an accelerometer on an audio input
+    /// ([`super::adapt`]); needs an audio output and an equalizer.
+    pub adapt: Option<AdaptSettings>,
 }
 
 impl SessionConfig {
@@ -106,6 +111,7 @@ impl SessionConfig {
             duration: None,
             exit_on_disconnect: false,
             reads: Vec::new(),
+            adapt: None,
         }
     }
 
@@ -209,8 +215,20 @@ impl Session {
         bank: MaterialBank,
         slots: &[u16],
     ) -> Result<RunningSession, LiveError> {
+        let adapt = match &self.config.adapt {
+            Some(settings) => Some(self.check_adapt(settings, config)?),
+            None => None,
+        };
         let input = self.input.bind_osc(bank.names(), config.channels)?;
-        let (controller, engine) = engine::build(config, bank, slots)?;
+        let (mut controller, engine) = engine::build(config, bank, slots)?;
+        let (adapt, tap) = match adapt {
+            Some((settings, weights)) => {
+                let (running, tap) =
+                    Self::start_adapt(&self.config, settings, weights, config, &mut controller)?;
+                (Some(running), Some(tap))
+            }
+            None => (None, None),
+        };
         let (output, info) = Output::start(
             Start {
                 spec: &self.config.output,
@@ -219,6 +237,7 @@ impl Session {
                 buffer: self.config.buffer,
                 channels: config.channels,
                 rate: config.rate,
+                tap,
             },
             engine,
         )?;
@@ -231,11 +250,109 @@ impl Session {
             controller,
             output,
             info,
+            adapt,
             source,
             ends: self.ends,
             duration: self.config.duration,
             exit_on_disconnect: self.config.exit_on_disconnect,
         })
+    }
+}
+
+impl Session {
+    /// Whether adaptation can run on this session and engine: the settings and the
+    /// equalizer's weights it starts from.
+    fn check_adapt<'a>(
+        &self,
+        settings: &'a AdaptSettings,
+        config: &'a EngineConfig,
+    ) -> Result<(&'a AdaptSettings, &'a SpectralWeights), LiveError> {
+        if !matches!(self.config.output, OutputSpec::Audio { .. }) {
+            return Err(LiveError::AdaptNeedsAudio);
+        }
+        let Some((weights, _)) = &config.compensation.equalizer else {
+            return Err(LiveError::AdaptNeedsEqualizer);
+        };
+        if usize::from(settings.channel) >= config.channels {
+            return Err(LiveError::AdaptChannel {
+                channel: settings.channel,
+                channels: config.channels,
+            });
+        }
+        Ok((settings, weights))
+    }
+
+    /// Starts the accelerometer's input stream and the loop that reads it; returns them
+    /// with the tap the output's callback feeds. The engine is sent the adapter's
+    /// starting weights first.
+    #[cfg(feature = "audio")]
+    fn start_adapt(
+        session: &SessionConfig,
+        settings: &AdaptSettings,
+        weights: &SpectralWeights,
+        config: &EngineConfig,
+        controller: &mut crate::engine::Controller,
+    ) -> Result<(RunningAdapt, DriveTap), LiveError> {
+        use crate::io::audio::{AudioConfig, AudioInput};
+        let parts = super::adapt::AdaptParts::new(
+            settings,
+            weights,
+            config.rate,
+            controller.telemetry_handle(),
+        )?;
+        controller.set_equalizer_weights(settings.channel, &parts.adapt.weights().gains_db)?;
+        let output_device = match &session.output {
+            OutputSpec::Audio { device } => device.clone(),
+            _ => None,
+        };
+        let input_config = AudioConfig {
+            host: session.host.parse().map_err(|error| LiveError::Host {
+                host: session.host.clone(),
+                error,
+            })?,
+            device: settings.device.clone().or(output_device),
+            channels: settings.input_channel.saturating_add(1),
+            rate: config.rate,
+            buffer_frames: session.buffer,
+        };
+        let mut sensor = parts.sensor;
+        let input = AudioInput::start(&input_config, move |samples: &[f32], channels| {
+            sensor.push(samples, channels);
+        })?;
+        Ok((
+            RunningAdapt {
+                adapt: parts.adapt,
+                input,
+            },
+            parts.drive,
+        ))
+    }
+
+    #[cfg(not(feature = "audio"))]
+    fn start_adapt(
+        _session: &SessionConfig,
+        _settings: &AdaptSettings,
+        _weights: &SpectralWeights,
+        _config: &EngineConfig,
+        _controller: &mut crate::engine::Controller,
+    ) -> Result<(RunningAdapt, DriveTap), LiveError> {
+        Err(LiveError::NoAudio)
+    }
+}
+
+/// The adaptation of a started session: its loop and the accelerometer's stream.
+struct RunningAdapt {
+    adapt: AdaptLoop,
+    #[cfg(feature = "audio")]
+    input: crate::io::audio::AudioInput,
+}
+
+impl RunningAdapt {
+    /// Stops the input stream; the final status and weights.
+    fn finish(self) -> (AdaptStatus, SpectralWeights) {
+        #[cfg(feature = "audio")]
+        self.input.stop();
+        (self.adapt.status(), self.adapt.weights().clone())
     }
 }
 
@@ -259,6 +376,7 @@ pub struct RunningSession {
     controller: Controller,
     output: Output,
     info: OutputInfo,
+    adapt: Option<RunningAdapt>,
     source: Source,
     ends: bool,
     duration: Option<Seconds>,
@@ -303,6 +421,8 @@ pub struct Summary {
     /// The loss of the input's device that ended the session, with
     /// [`SessionConfig::exit_on_disconnect`].
     pub lost: Option<LinkEvent>,
+    /// What the adaptation did, and the weights it ended with, if it ran.
+    pub adapt: Option<(AdaptStatus, SpectralWeights)>,
 }
 
 /// What a running session is doing now, given to
@@ -320,6 +440,8 @@ pub struct Status {
     pub input: SourceStats,
     /// Events dropped so far because the engine's queue was full.
     pub queue_full: u64,
+    /// The adaptation's progress, if it runs.
+    pub adapt: Option<AdaptStatus>,
 }
 
 impl RunningSession {
@@ -390,6 +512,7 @@ impl RunningSession {
                 }
                 status.input = source.stats();
                 status.queue_full = queue_full;
+                status.adapt = self.adapt.as_ref().map(|a| a.adapt.status());
                 on_status(&status);
             }
             if let Some(t) = ended_at {
@@ -422,6 +545,9 @@ impl RunningSession {
                 // once: pace the loop so that it cannot spin.
                 thread::sleep(POLL.saturating_sub(polled.elapsed()));
             }
+            if let Some(running) = &mut self.adapt {
+                running.adapt.poll(controller);
+            }
             controller.collect();
             self.output.check()?;
         }
@@ -431,6 +557,7 @@ impl RunningSession {
             thread::sleep(Duration::from_millis(5));
         }
         let output = self.output.finish()?;
+        let adapt = self.adapt.map(RunningAdapt::finish);
         let telemetry = controller.telemetry();
         let input = source.stats();
         let interface = match self.source {
@@ -448,6 +575,7 @@ impl RunningSession {
             interface,
             output,
             lost,
+            adapt,
         })
     }
 }

@@ -6,6 +6,8 @@
 #[cfg(feature = "std")]
 pub mod butterworth;
 #[cfg(feature = "std")]
+pub mod delay;
+#[cfg(feature = "std")]
 pub mod filtfilt;
 pub mod fixed;
 pub mod noise;

@@ -22,10 +22,14 @@ use std::thread;
 use anyhow::{Context, bail};
 use clap::Args;
 use underfoot::atomic_file::OutputFile;
+use underfoot::compensation::equalizer::Realisation;
+use underfoot::compensation::files::EqualizerFile;
+use underfoot::document;
 use underfoot::io::spec::{self, InputSpec, OutputSpec, SpecError};
 use underfoot::io::{Backoff, LinkEvent};
+use underfoot::live::adapt::AdaptSettings;
 use underfoot::live::{
-    InterfaceSummary, OutputInfo, OutputReport, SerialSettings, Session, SessionConfig,
+    InterfaceSummary, LiveError, OutputInfo, OutputReport, SerialSettings, Session, SessionConfig,
     SessionInput, Summary,
 };
 use underfoot::units::{Decibels, Seconds};
@@ -111,6 +115,25 @@ pub struct RunArgs {
     /// watchdog fades.
     #[arg(long = "status-json", value_name = "FILE|-")]
     status_json: Option<PathBuf>,
+    /// Adapt the equalizer (--eq) while the user walks: an accelerometer on an audio input
+    /// of the same host (--adapt-input) is compared with the drive, the delay between
+    /// them removed, and the weights moved towards flat (at most 0.5 dB per update, within
+    /// the sweeps' bounds). Needs --output audio.
+    #[arg(long, requires = "eq")]
+    adapt: bool,
+    /// The input channel (0-based) the accelerometer is on [default: 0].
+    #[arg(long = "adapt-input", value_name = "N", requires = "adapt")]
+    adapt_input: Option<u16>,
+    /// The input device the accelerometer is on [default: the output's device].
+    #[arg(long = "adapt-device", value_name = "NAME", requires = "adapt")]
+    adapt_device: Option<String>,
+    /// The output channel (0-based) whose equalizer adapts [default: 0].
+    #[arg(long = "adapt-channel", value_name = "N", requires = "adapt")]
+    adapt_channel: Option<u16>,
+    /// Save the adapted equalizer when the session ends (the format of --eq, to start
+    /// from next time).
+    #[arg(long = "adapt-out", value_name = "FILE.json", requires = "adapt")]
+    adapt_out: Option<PathBuf>,
     #[command(flatten)]
     synth: SynthArgs,
 }
@@ -240,6 +263,12 @@ impl RunArgs {
             duration: self.duration.map(Seconds),
             exit_on_disconnect: self.exit_on_disconnect,
             reads,
+            adapt: self.adapt.then(|| AdaptSettings {
+                channel: self.adapt_channel.unwrap_or(0),
+                device: self.adapt_device.clone(),
+                input_channel: self.adapt_input.unwrap_or(0),
+                ..AdaptSettings::default()
+            }),
             ..SessionConfig::new(input, self.output())
         })
     }
@@ -254,17 +283,26 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         eprintln!("underfoot: {line}");
     }
     let config = args.session()?;
+    // Said before anything is loaded or opened (the session would refuse it too, later).
+    if config.adapt.is_some() && !matches!(config.output, OutputSpec::Audio { .. }) {
+        return Err(LiveError::AdaptNeedsAudio.into());
+    }
     // The status file is checked like every output, before anything starts: never one
     // of the session's inputs, nor its WAV output.
+    let mut inputs = config.inputs();
+    if let OutputSpec::Wav { path } = &config.output {
+        inputs.push(path);
+    }
     let status_file = match &args.status_json {
-        Some(p) if p.as_os_str() != "-" => {
-            let mut inputs = config.inputs();
-            if let OutputSpec::Wav { path } = &config.output {
-                inputs.push(path);
-            }
+        Some(p) if p.as_os_str() != "-" => Some(OutputFile::check(p, &inputs)?),
+        _ => None,
+    };
+    let adapt_out = match &args.adapt_out {
+        Some(p) => {
+            inputs.extend(status_file.as_ref().map(OutputFile::path));
             Some(OutputFile::check(p, &inputs)?)
         }
-        _ => None,
+        None => None,
     };
     let session = Session::open(&config)?;
     if let (Some(path), Some(config)) = (&args.interface, session.interface()) {
@@ -360,6 +398,38 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         running.run(&stop, report_link)?
     };
     emit(&report(&summary))?;
+    if let (Some(out), Some((status, weights))) = (&adapt_out, &summary.adapt) {
+        let realisation = setup
+            .config
+            .compensation
+            .equalizer
+            .as_ref()
+            .map_or(Realisation::Bank, |(_, r)| *r);
+        let from = args
+            .synth
+            .eq
+            .as_deref()
+            .map_or_else(String::new, |p| format!(" from {}", p.display()));
+        let file = EqualizerFile::new(
+            weights.clone(),
+            realisation,
+            Vec::new(),
+            format!(
+                "adapted online{from} over {:.0} s of walking: {} update(s), estimated \
+                 deviation {}",
+                summary.elapsed.as_secs_f64(),
+                status.updates,
+                status
+                    .estimated_deviation
+                    .map_or_else(|| "unknown".to_owned(), |d| format!("{:.2} dB", d.0))
+            ),
+        );
+        document::save_to(out, &file)?;
+        eprintln!(
+            "underfoot: wrote the adapted equalizer to {}",
+            out.path().display()
+        );
+    }
     match &summary.lost {
         Some(event) => bail!("input {event}; exiting (--exit-on-disconnect)"),
         None => Ok(()),
@@ -428,10 +498,15 @@ fn report(summary: &Summary) -> String {
         .as_ref()
         .map(interface_report)
         .unwrap_or_default();
+    let adapt = summary
+        .adapt
+        .as_ref()
+        .map(|(a, _)| format!("{}\n", status::adapt_line(a)))
+        .unwrap_or_default();
     format!(
         "ran {:.1} s: {} strike(s), peak {:.1} dBFS, {} sample(s) limited, {} non-finite \
          silenced, {} watchdog fade(s)\ninput: {} event(s), {} rejected, {} byte(s) skipped, \
-         {} dropped (queue full)\n{link}{clock}{interface}{}\n",
+         {} dropped (queue full)\n{link}{clock}{interface}{adapt}{}\n",
         summary.elapsed.as_secs_f64(),
         t.strikes,
         Decibels::from_amplitude(f64::from(t.peak).max(1e-12)).0,

@@ -9,6 +9,7 @@ use std::time::Duration;
 
 use serde_json::json;
 use underfoot::live::Status;
+use underfoot::live::adapt::AdaptStatus;
 
 /// How often the session reports: the terminal's refresh.
 pub const EVERY: Duration = Duration::from_millis(250);
@@ -50,7 +51,23 @@ pub fn block(s: &Status) -> Vec<String> {
             ch.limited
         ));
     }
+    lines.extend(s.adapt.as_ref().map(adapt_line));
     lines
+}
+
+/// The adaptation's progress in one line (under 80 columns).
+#[must_use]
+pub fn adapt_line(a: &AdaptStatus) -> String {
+    let delay = a
+        .delay
+        .map_or_else(|| "searching".to_owned(), |d| format!("{d} samples"));
+    let deviation = a
+        .estimated_deviation
+        .map_or_else(|| "-".to_owned(), |d| format!("{:.2} dB", d.0));
+    format!(
+        "adapt: delay {delay}, {} update(s), est. deviation {deviation}, {} bins",
+        a.updates, a.trusted_bins
+    )
 }
 
 /// One JSON status line (no newline): channel peaks are the largest since the previous
@@ -90,6 +107,16 @@ pub fn json_line(s: &Status, peaks: &[f32]) -> String {
         "non_finite": t.non_finite,
         "limited": t.limited,
         "watchdog_fades": t.watchdog_trips,
+        "adapt": s.adapt.as_ref().map(|a| json!({
+            "delay_samples": a.delay,
+            "realignments": a.realignments,
+            "frames": a.frames,
+            "updates": a.updates,
+            "trusted_bins": a.trusted_bins,
+            "last_change_db": a.last_change.0,
+            "estimated_deviation_db": a.estimated_deviation.map(|d| d.0),
+            "dropped": a.dropped,
+        })),
     })
     .to_string()
 }
