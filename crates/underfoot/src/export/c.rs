@@ -8,6 +8,13 @@
 //! contract `a * b + c` into fused multiply-adds (ISO C mode, `-std=c99`, does not).
 //! The hard limiter is [`crate::safety::Limiter`]'s.
 //!
+//! Each material is a `const uf_material` object of its own, and `uf_materials` (an
+//! array of pointers to them) with `uf_find` sit behind `UF_NO_INDEX`, so that firmware
+//! which names its materials links only their tables under `--gc-sections`; the format
+//! macros `UF_NO_F32`, `UF_NO_Q15`, `UF_NO_Q31` leave out a format's tables and functions.
+//! The gain is also given in fixed point (`gain_q 2^-gain_shift`, the largest shift that
+//! keeps `gain_q` in 16 bits) for parts without a floating-point unit.
+//!
 //! Portability: C99 with `<stdint.h>` (`int64_t` is emulated on 16-bit parts); right
 //! shifts of negative values must be arithmetic, which the header checks at compile time
 //! (every compiler for every microcontroller we know of does this). No `<math.h>`, no
@@ -95,41 +102,38 @@ pub fn header(export: &Export) -> String {
         "/* The most sections any material here has: the size of a state array. */\n\
          #define UF_MAX_SECTIONS {max_sections}u"
     );
+    h.push_str(LINKING);
+    let w = &mut h;
+    for (i, m) in export.materials.iter().enumerate() {
+        let _ = writeln!(
+            w,
+            "extern const uf_material {}; /* {} */",
+            ident(i, &m.name),
+            comment_safe(&m.name)
+        );
+    }
     let _ = writeln!(
         w,
-        "extern const uf_material uf_materials[UF_MATERIAL_COUNT];\n"
+        "#ifndef UF_NO_INDEX\n\
+         /* Every material, in library order: pointers to the objects above. */\n\
+         extern const uf_material *const uf_materials[UF_MATERIAL_COUNT];\n\
+         #endif\n"
     );
     h.push_str(DECLARATIONS);
     h.push_str("\n#ifdef UNDERFOOT_IMPLEMENTATION\n\n");
+    h.push_str(TABLE_MACROS);
     for (i, m) in export.materials.iter().enumerate() {
         tables(&mut h, i, m);
     }
     let w = &mut h;
-    let _ = writeln!(w, "const uf_material uf_materials[UF_MATERIAL_COUNT] = {{");
+    let _ = writeln!(
+        w,
+        "#ifndef UF_NO_INDEX\nconst uf_material *const uf_materials[UF_MATERIAL_COUNT] = {{"
+    );
     for (i, m) in export.materials.iter().enumerate() {
-        let id = ident(i, &m.name);
-        let table = |on: bool, suffix: &str| {
-            if on {
-                format!("{id}_{suffix}")
-            } else {
-                "0".to_string()
-            }
-        };
-        let _ = writeln!(
-            w,
-            "    {{\"{}\", {}u, {}, {}, {}u, {}, {}, {}, {}}},",
-            c_string(&m.name),
-            m.rate.0,
-            float(m.band.lo.0 as f32),
-            float(m.band.hi.0 as f32),
-            m.sections.len(),
-            float(m.gain as f32),
-            table(true, "f32"),
-            table(m.with_q15, "q15"),
-            table(m.with_q31, "q31"),
-        );
+        let _ = writeln!(w, "    &{},", ident(i, &m.name));
     }
-    let _ = writeln!(w, "}};\n");
+    let _ = writeln!(w, "}};\n#endif\n");
     h.push_str(IMPLEMENTATION);
     h.push_str("\n#endif /* UNDERFOOT_IMPLEMENTATION */\n#endif /* UNDERFOOT_MATERIALS_H */\n");
     h
@@ -140,7 +144,7 @@ fn tables(h: &mut String, i: usize, m: &Exported) {
     let _ = writeln!(h, "/* {} */", comment_safe(&m.name));
     let _ = writeln!(
         h,
-        "static const uf_f32_section {id}_f32[{}] = {{",
+        "#ifndef UF_NO_F32\nstatic const uf_f32_section {id}_f32[{}] = {{",
         m.f32.len()
     );
     for s in &m.f32 {
@@ -154,11 +158,11 @@ fn tables(h: &mut String, i: usize, m: &Exported) {
             float(s.a[1])
         );
     }
-    let _ = writeln!(h, "}};");
+    let _ = writeln!(h, "}};\n#endif");
     if m.with_q15 {
         let _ = writeln!(
             h,
-            "static const uf_q15_section {id}_q15[{}] = {{",
+            "#ifndef UF_NO_Q15\nstatic const uf_q15_section {id}_q15[{}] = {{",
             m.q15.len()
         );
         for s in &m.q15 {
@@ -180,12 +184,12 @@ fn tables(h: &mut String, i: usize, m: &Exported) {
                 s.d_frac
             );
         }
-        let _ = writeln!(h, "}};");
+        let _ = writeln!(h, "}};\n#endif");
     }
     if m.with_q31 {
         let _ = writeln!(
             h,
-            "static const uf_q31_section {id}_q31[{}] = {{",
+            "#ifndef UF_NO_Q31\nstatic const uf_q31_section {id}_q31[{}] = {{",
             m.q31.len()
         );
         for s in &m.q31 {
@@ -205,8 +209,48 @@ fn tables(h: &mut String, i: usize, m: &Exported) {
             );
         }
         let _ = writeln!(h, "}};");
+        let _ = writeln!(h, "#endif");
     }
+    let table = |on: bool, format: &str, suffix: &str| {
+        if on {
+            format!("UF_{format}_TABLE({id}_{suffix})")
+        } else {
+            "0".to_string()
+        }
+    };
+    let (gain_q, gain_shift) = gain_fixed(m.gain);
+    let _ = writeln!(
+        h,
+        "const uf_material {id} = {{\"{}\", {}u, {}, {}, {}u, {}, {}, {}u, {}, {}, {}}};",
+        c_string(&m.name),
+        m.rate.0,
+        float(m.band.lo.0 as f32),
+        float(m.band.hi.0 as f32),
+        m.sections.len(),
+        float(m.gain as f32),
+        int(i64::from(gain_q), 16),
+        gain_shift,
+        table(true, "F32", "f32"),
+        table(m.with_q15, "Q15", "q15"),
+        table(m.with_q31, "Q31", "q31"),
+    );
     h.push('\n');
+}
+
+/// `gain` as `q 2^-shift` with `q` a 16-bit integer and the largest shift (at most 30)
+/// that keeps it one: relative error at most 2^-15 for a gain from 2^-15 to 32767.
+/// A gain beyond that saturates; a non-finite or non-positive one is 0.
+fn gain_fixed(gain: f64) -> (i16, u8) {
+    if !(gain.is_finite() && gain > 0.0) {
+        return (0, 0);
+    }
+    for shift in (0..=30u8).rev() {
+        let q = (gain * f64::from(1u32 << shift)).round();
+        if q <= f64::from(i16::MAX) {
+            return (q as i16, shift);
+        }
+    }
+    (i16::MAX, 0)
 }
 
 /// A C identifier unique in the header: index and sanitised name.
@@ -292,8 +336,16 @@ typedef struct { int32_t x[2]; int32_t y[2]; } uf_q15_state;
 typedef struct { int32_t x[2]; int32_t y[2]; int64_t e[2]; } uf_q31_state;
 
 /* A material. Its model's output is `gain` times the cascade's; the cascade runs at
- * `rate`, its fit holds over band_lo..band_hi Hz. A format not exported is a null
- * pointer. */
+ * `rate`, its fit holds over band_lo..band_hi Hz. A format not exported (or left out,
+ * below) is a null pointer.
+ * In fixed point the same gain is gain_q 2^-gain_shift (gain_q a 16-bit integer, the
+ * shift as large as fits it: within 2^-15 of `gain`, relative, 0.0003 dB), which
+ * uf_q31_gain applies to a cascade's Q31 output, so firmware without a floating-point
+ * unit never needs `gain`. Apply it after the cascade and before the limit, which then
+ * bounds what reaches the skin whatever the gain:
+ *   y = uf_q31_clamp(uf_q31_gain(m, uf_q15_cascade(m->q15, st, m->sections, x)), ceiling);
+ * A gain above 1 (a quiet fit scaled up) can saturate there: scale the drive down
+ * instead when the material's loudest strikes must stay linear. */
 typedef struct {
     const char *name;
     uint32_t rate;
@@ -301,6 +353,8 @@ typedef struct {
     float band_hi;
     uint8_t sections;
     float gain;
+    int16_t gain_q;
+    uint8_t gain_shift;
     const uf_f32_section *f32;
     const uf_q15_section *q15;
     const uf_q31_section *q31;
@@ -312,8 +366,36 @@ typedef struct { float ceiling; float gain; float release; } uf_limiter;
 
 "#;
 
-const DECLARATIONS: &str = r#"/* The material of that name, or a null pointer. */
+const LINKING: &str = r#"/* Each material is an object of its own: firmware that names the ones it plays links
+ * only their tables, when built with -ffunction-sections -fdata-sections and linked
+ * with -Wl,--gc-sections. uf_materials and uf_find reach every material: define
+ * UF_NO_INDEX where the implementation is compiled to leave them out. Likewise
+ * UF_NO_F32, UF_NO_Q15 and UF_NO_Q31 leave out a format's tables (its pointers are then
+ * null) and its functions. */
+"#;
+
+const TABLE_MACROS: &str = r#"#ifdef UF_NO_F32
+#define UF_F32_TABLE(t) 0
+#else
+#define UF_F32_TABLE(t) t
+#endif
+#ifdef UF_NO_Q15
+#define UF_Q15_TABLE(t) 0
+#else
+#define UF_Q15_TABLE(t) t
+#endif
+#ifdef UF_NO_Q31
+#define UF_Q31_TABLE(t) 0
+#else
+#define UF_Q31_TABLE(t) t
+#endif
+
+"#;
+
+const DECLARATIONS: &str = r#"#ifndef UF_NO_INDEX
+/* The material of that name, or a null pointer. */
 const uf_material *uf_find(const char *name);
+#endif
 
 void uf_f32_reset(uf_f32_state *state, unsigned sections);
 void uf_q15_reset(uf_q15_state *state, unsigned sections);
@@ -340,6 +422,9 @@ int16_t uf_q31_to_q15(int32_t y);
 int16_t uf_q15_clamp(int16_t x, int16_t ceiling);
 int32_t uf_q31_clamp(int32_t x, int32_t ceiling);
 
+/* A Q31 cascade output times the material's gain (gain_q 2^-gain_shift), saturated. */
+int32_t uf_q31_gain(const uf_material *m, int32_t y);
+
 /* `ceiling` as an amplitude (e.g. 0.5 for -6 dB); `release` = 1 - exp(-1 / (T fs))
  * for a release time T at rate fs. */
 void uf_limiter_init(uf_limiter *limiter, float ceiling, float release);
@@ -350,6 +435,7 @@ const IMPLEMENTATION: &str = r#"#if (-1 >> 1) != -1
 #error "underfoot: right shifts of negative values must be arithmetic"
 #endif
 
+#ifndef UF_NO_INDEX
 static int uf_name_eq(const char *a, const char *b) {
     while (*a != '\0' && *a == *b) { ++a; ++b; }
     return *a == *b;
@@ -358,25 +444,31 @@ static int uf_name_eq(const char *a, const char *b) {
 const uf_material *uf_find(const char *name) {
     unsigned i;
     for (i = 0; i < UF_MATERIAL_COUNT; ++i) {
-        if (uf_name_eq(uf_materials[i].name, name)) return &uf_materials[i];
+        if (uf_name_eq(uf_materials[i]->name, name)) return uf_materials[i];
     }
     return 0;
 }
+#endif
 
+#ifndef UF_NO_F32
 void uf_f32_reset(uf_f32_state *state, unsigned sections) {
     unsigned i;
     for (i = 0; i < sections; ++i) {
         state[i].x[0] = state[i].x[1] = state[i].y[0] = state[i].y[1] = 0.0f;
     }
 }
+#endif
 
+#ifndef UF_NO_Q15
 void uf_q15_reset(uf_q15_state *state, unsigned sections) {
     unsigned i;
     for (i = 0; i < sections; ++i) {
         state[i].x[0] = state[i].x[1] = state[i].y[0] = state[i].y[1] = 0;
     }
 }
+#endif
 
+#ifndef UF_NO_Q31
 void uf_q31_reset(uf_q31_state *state, unsigned sections) {
     unsigned i;
     for (i = 0; i < sections; ++i) {
@@ -384,7 +476,9 @@ void uf_q31_reset(uf_q31_state *state, unsigned sections) {
         state[i].e[0] = state[i].e[1] = 0;
     }
 }
+#endif
 
+#ifndef UF_NO_F32
 float uf_f32_cascade(const uf_f32_section *sos, uf_f32_state *state, unsigned sections, float x) {
     unsigned i;
     for (i = 0; i < sections; ++i) {
@@ -398,7 +492,9 @@ float uf_f32_cascade(const uf_f32_section *sos, uf_f32_state *state, unsigned se
     }
     return x;
 }
+#endif
 
+#if !defined(UF_NO_Q15) || !defined(UF_NO_Q31)
 /* Saturating 64-bit add and subtract, without overflowing. */
 static int64_t uf_add64(int64_t a, int64_t b) {
     if (b > 0 && a > INT64_MAX - b) return INT64_MAX;
@@ -417,7 +513,9 @@ static int64_t uf_shl64(int64_t v, unsigned n) {
     if (v < -(INT64_MAX >> n) - 1) return INT64_MIN;
     return v * ((int64_t)1 << n);
 }
+#endif
 
+#ifndef UF_NO_Q15
 int32_t uf_q15_cascade(const uf_q15_section *sos, uf_q15_state *state, unsigned sections, int16_t x) {
     unsigned i;
     int32_t v = (int32_t)x * 65536;
@@ -447,6 +545,7 @@ int32_t uf_q15_cascade(const uf_q15_section *sos, uf_q15_state *state, unsigned 
     }
     return v;
 }
+#endif
 
 int16_t uf_q31_to_q15(int32_t y) {
     /* Truncated towards zero: a magnitude is never rounded up, so never past a ceiling. */
@@ -454,6 +553,7 @@ int16_t uf_q31_to_q15(int32_t y) {
     return (int16_t)(v >= 0 ? v >> 16 : -((-v) >> 16));
 }
 
+#ifndef UF_NO_Q31
 int32_t uf_q31_cascade(const uf_q31_section *sos, uf_q31_state *state, unsigned sections, int32_t x) {
     unsigned i;
     for (i = 0; i < sections; ++i) {
@@ -480,6 +580,7 @@ int32_t uf_q31_cascade(const uf_q31_section *sos, uf_q31_state *state, unsigned 
     }
     return x;
 }
+#endif
 
 int16_t uf_q15_clamp(int16_t x, int16_t ceiling) {
     int16_t c = ceiling < 0 ? 0 : ceiling;
@@ -491,23 +592,35 @@ int32_t uf_q31_clamp(int32_t x, int32_t ceiling) {
     return x > c ? c : (x < -c ? -c : x);
 }
 
+int32_t uf_q31_gain(const uf_material *m, int32_t y) {
+    /* |y gain_q| < 2^46; the shift is at most 30. */
+    int64_t v = ((int64_t)y * m->gain_q) >> (m->gain_shift > 30u ? 30u : m->gain_shift);
+    return v > INT32_MAX ? INT32_MAX : (v < INT32_MIN ? INT32_MIN : (int32_t)v);
+}
+
+#ifndef UF_NO_F32
 void uf_f32_cascade_block(const uf_f32_section *sos, uf_f32_state *state, unsigned sections,
                           const float *in, float *out, unsigned n) {
     unsigned i;
     for (i = 0; i < n; ++i) out[i] = uf_f32_cascade(sos, state, sections, in[i]);
 }
+#endif
 
+#ifndef UF_NO_Q15
 void uf_q15_cascade_block(const uf_q15_section *sos, uf_q15_state *state, unsigned sections,
                           const int16_t *in, int32_t *out, unsigned n) {
     unsigned i;
     for (i = 0; i < n; ++i) out[i] = uf_q15_cascade(sos, state, sections, in[i]);
 }
+#endif
 
+#ifndef UF_NO_Q31
 void uf_q31_cascade_block(const uf_q31_section *sos, uf_q31_state *state, unsigned sections,
                           const int32_t *in, int32_t *out, unsigned n) {
     unsigned i;
     for (i = 0; i < n; ++i) out[i] = uf_q31_cascade(sos, state, sections, in[i]);
 }
+#endif
 
 void uf_limiter_init(uf_limiter *limiter, float ceiling, float release) {
     limiter->ceiling = ceiling;
@@ -527,3 +640,26 @@ float uf_limiter_tick(uf_limiter *limiter, float x) {
     return y > limiter->ceiling ? limiter->ceiling : (y < -limiter->ceiling ? -limiter->ceiling : y);
 }
 "#;
+
+#[cfg(test)]
+mod tests {
+    use super::gain_fixed;
+
+    #[test]
+    fn the_fixed_point_gain_is_the_float_gain_within_its_precision() {
+        assert_eq!(gain_fixed(1.0), (16384, 14));
+        assert_eq!(gain_fixed(0.0), (0, 0));
+        assert_eq!(gain_fixed(f64::NAN), (0, 0));
+        assert_eq!(gain_fixed(1e6), (i16::MAX, 0));
+        for g in [3.1e-5, 0.01, 0.3, 0.999_99, 1.5, 7.25, 300.0, 32_000.0] {
+            let (q, shift) = gain_fixed(g);
+            let back = f64::from(q) / f64::from(1u32 << shift);
+            assert!(
+                (back - g).abs() <= g * 2f64.powi(-15),
+                "{g}: {q} 2^-{shift}"
+            );
+            // The shift is the largest that fits: one more would overflow 16 bits.
+            assert!(shift == 30 || (g * f64::from(1u32 << (shift + 1))).round() > 32767.0);
+        }
+    }
+}

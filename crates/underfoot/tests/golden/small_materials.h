@@ -41,8 +41,16 @@ typedef struct { int32_t x[2]; int32_t y[2]; } uf_q15_state;
 typedef struct { int32_t x[2]; int32_t y[2]; int64_t e[2]; } uf_q31_state;
 
 /* A material. Its model's output is `gain` times the cascade's; the cascade runs at
- * `rate`, its fit holds over band_lo..band_hi Hz. A format not exported is a null
- * pointer. */
+ * `rate`, its fit holds over band_lo..band_hi Hz. A format not exported (or left out,
+ * below) is a null pointer.
+ * In fixed point the same gain is gain_q 2^-gain_shift (gain_q a 16-bit integer, the
+ * shift as large as fits it: within 2^-15 of `gain`, relative, 0.0003 dB), which
+ * uf_q31_gain applies to a cascade's Q31 output, so firmware without a floating-point
+ * unit never needs `gain`. Apply it after the cascade and before the limit, which then
+ * bounds what reaches the skin whatever the gain:
+ *   y = uf_q31_clamp(uf_q31_gain(m, uf_q15_cascade(m->q15, st, m->sections, x)), ceiling);
+ * A gain above 1 (a quiet fit scaled up) can saturate there: scale the drive down
+ * instead when the material's loudest strikes must stay linear. */
 typedef struct {
     const char *name;
     uint32_t rate;
@@ -50,6 +58,8 @@ typedef struct {
     float band_hi;
     uint8_t sections;
     float gain;
+    int16_t gain_q;
+    uint8_t gain_shift;
     const uf_f32_section *f32;
     const uf_q15_section *q15;
     const uf_q31_section *q31;
@@ -62,10 +72,22 @@ typedef struct { float ceiling; float gain; float release; } uf_limiter;
 #define UF_MATERIAL_COUNT 1u
 /* The most sections any material here has: the size of a state array. */
 #define UF_MAX_SECTIONS 2u
-extern const uf_material uf_materials[UF_MATERIAL_COUNT];
+/* Each material is an object of its own: firmware that names the ones it plays links
+ * only their tables, when built with -ffunction-sections -fdata-sections and linked
+ * with -Wl,--gc-sections. uf_materials and uf_find reach every material: define
+ * UF_NO_INDEX where the implementation is compiled to leave them out. Likewise
+ * UF_NO_F32, UF_NO_Q15 and UF_NO_Q31 leave out a format's tables (its pointers are then
+ * null) and its functions. */
+extern const uf_material uf_m0_test_tile; /* test-tile */
+#ifndef UF_NO_INDEX
+/* Every material, in library order: pointers to the objects above. */
+extern const uf_material *const uf_materials[UF_MATERIAL_COUNT];
+#endif
 
+#ifndef UF_NO_INDEX
 /* The material of that name, or a null pointer. */
 const uf_material *uf_find(const char *name);
+#endif
 
 void uf_f32_reset(uf_f32_state *state, unsigned sections);
 void uf_q15_reset(uf_q15_state *state, unsigned sections);
@@ -92,6 +114,9 @@ int16_t uf_q31_to_q15(int32_t y);
 int16_t uf_q15_clamp(int16_t x, int16_t ceiling);
 int32_t uf_q31_clamp(int32_t x, int32_t ceiling);
 
+/* A Q31 cascade output times the material's gain (gain_q 2^-gain_shift), saturated. */
+int32_t uf_q31_gain(const uf_material *m, int32_t y);
+
 /* `ceiling` as an amplitude (e.g. 0.5 for -6 dB); `release` = 1 - exp(-1 / (T fs))
  * for a release time T at rate fs. */
 void uf_limiter_init(uf_limiter *limiter, float ceiling, float release);
@@ -99,28 +124,54 @@ float uf_limiter_tick(uf_limiter *limiter, float x);
 
 #ifdef UNDERFOOT_IMPLEMENTATION
 
+#ifdef UF_NO_F32
+#define UF_F32_TABLE(t) 0
+#else
+#define UF_F32_TABLE(t) t
+#endif
+#ifdef UF_NO_Q15
+#define UF_Q15_TABLE(t) 0
+#else
+#define UF_Q15_TABLE(t) t
+#endif
+#ifdef UF_NO_Q31
+#define UF_Q31_TABLE(t) 0
+#else
+#define UF_Q31_TABLE(t) t
+#endif
+
 /* test-tile */
+#ifndef UF_NO_F32
 static const uf_f32_section uf_m0_test_tile_f32[2] = {
     {{1e-1f, 0e0f, -1e-1f}, {-1.6e0f, 8.1e-1f}},
     {{1e0f, -1.2e0f, 5e-1f}, {-1.9e0f, 9.5e-1f}},
 };
+#endif
+#ifndef UF_NO_Q15
 static const uf_q15_section uf_m0_test_tile_q15[2] = {
     {26214, 18u, {0, -1}, {0, -26214}, 34u, {-2, 1}, {26214, -12452}, 16u},
     {16384, 14u, {-1, 1}, {-13107, (-32767 - 1)}, 16u, {-2, 1}, {26214, -13107}, 18u},
 };
+#endif
+#ifndef UF_NO_Q31
 static const uf_q31_section uf_m0_test_tile_q31[2] = {
     {{107374182, 0, -107374182}, {-1717986918, 869730877}, 1u, {2, -1}, 0u},
     {{1073741824, -1288490189, 536870912}, {-2040109466, 1020054733}, 1u, {2, -1}, 0u},
 };
+#endif
+const uf_material uf_m0_test_tile = {"test-tile", 2000u, 2e1f, 9e2f, 2u, 1e0f, 16384, 14u, UF_F32_TABLE(uf_m0_test_tile_f32), UF_Q15_TABLE(uf_m0_test_tile_q15), UF_Q31_TABLE(uf_m0_test_tile_q31)};
 
-const uf_material uf_materials[UF_MATERIAL_COUNT] = {
-    {"test-tile", 2000u, 2e1f, 9e2f, 2u, 1e0f, uf_m0_test_tile_f32, uf_m0_test_tile_q15, uf_m0_test_tile_q31},
+#ifndef UF_NO_INDEX
+const uf_material *const uf_materials[UF_MATERIAL_COUNT] = {
+    &uf_m0_test_tile,
 };
+#endif
 
 #if (-1 >> 1) != -1
 #error "underfoot: right shifts of negative values must be arithmetic"
 #endif
 
+#ifndef UF_NO_INDEX
 static int uf_name_eq(const char *a, const char *b) {
     while (*a != '\0' && *a == *b) { ++a; ++b; }
     return *a == *b;
@@ -129,25 +180,31 @@ static int uf_name_eq(const char *a, const char *b) {
 const uf_material *uf_find(const char *name) {
     unsigned i;
     for (i = 0; i < UF_MATERIAL_COUNT; ++i) {
-        if (uf_name_eq(uf_materials[i].name, name)) return &uf_materials[i];
+        if (uf_name_eq(uf_materials[i]->name, name)) return uf_materials[i];
     }
     return 0;
 }
+#endif
 
+#ifndef UF_NO_F32
 void uf_f32_reset(uf_f32_state *state, unsigned sections) {
     unsigned i;
     for (i = 0; i < sections; ++i) {
         state[i].x[0] = state[i].x[1] = state[i].y[0] = state[i].y[1] = 0.0f;
     }
 }
+#endif
 
+#ifndef UF_NO_Q15
 void uf_q15_reset(uf_q15_state *state, unsigned sections) {
     unsigned i;
     for (i = 0; i < sections; ++i) {
         state[i].x[0] = state[i].x[1] = state[i].y[0] = state[i].y[1] = 0;
     }
 }
+#endif
 
+#ifndef UF_NO_Q31
 void uf_q31_reset(uf_q31_state *state, unsigned sections) {
     unsigned i;
     for (i = 0; i < sections; ++i) {
@@ -155,7 +212,9 @@ void uf_q31_reset(uf_q31_state *state, unsigned sections) {
         state[i].e[0] = state[i].e[1] = 0;
     }
 }
+#endif
 
+#ifndef UF_NO_F32
 float uf_f32_cascade(const uf_f32_section *sos, uf_f32_state *state, unsigned sections, float x) {
     unsigned i;
     for (i = 0; i < sections; ++i) {
@@ -169,7 +228,9 @@ float uf_f32_cascade(const uf_f32_section *sos, uf_f32_state *state, unsigned se
     }
     return x;
 }
+#endif
 
+#if !defined(UF_NO_Q15) || !defined(UF_NO_Q31)
 /* Saturating 64-bit add and subtract, without overflowing. */
 static int64_t uf_add64(int64_t a, int64_t b) {
     if (b > 0 && a > INT64_MAX - b) return INT64_MAX;
@@ -188,7 +249,9 @@ static int64_t uf_shl64(int64_t v, unsigned n) {
     if (v < -(INT64_MAX >> n) - 1) return INT64_MIN;
     return v * ((int64_t)1 << n);
 }
+#endif
 
+#ifndef UF_NO_Q15
 int32_t uf_q15_cascade(const uf_q15_section *sos, uf_q15_state *state, unsigned sections, int16_t x) {
     unsigned i;
     int32_t v = (int32_t)x * 65536;
@@ -218,6 +281,7 @@ int32_t uf_q15_cascade(const uf_q15_section *sos, uf_q15_state *state, unsigned 
     }
     return v;
 }
+#endif
 
 int16_t uf_q31_to_q15(int32_t y) {
     /* Truncated towards zero: a magnitude is never rounded up, so never past a ceiling. */
@@ -225,6 +289,7 @@ int16_t uf_q31_to_q15(int32_t y) {
     return (int16_t)(v >= 0 ? v >> 16 : -((-v) >> 16));
 }
 
+#ifndef UF_NO_Q31
 int32_t uf_q31_cascade(const uf_q31_section *sos, uf_q31_state *state, unsigned sections, int32_t x) {
     unsigned i;
     for (i = 0; i < sections; ++i) {
@@ -251,6 +316,7 @@ int32_t uf_q31_cascade(const uf_q31_section *sos, uf_q31_state *state, unsigned 
     }
     return x;
 }
+#endif
 
 int16_t uf_q15_clamp(int16_t x, int16_t ceiling) {
     int16_t c = ceiling < 0 ? 0 : ceiling;
@@ -262,23 +328,35 @@ int32_t uf_q31_clamp(int32_t x, int32_t ceiling) {
     return x > c ? c : (x < -c ? -c : x);
 }
 
+int32_t uf_q31_gain(const uf_material *m, int32_t y) {
+    /* |y gain_q| < 2^46; the shift is at most 30. */
+    int64_t v = ((int64_t)y * m->gain_q) >> (m->gain_shift > 30u ? 30u : m->gain_shift);
+    return v > INT32_MAX ? INT32_MAX : (v < INT32_MIN ? INT32_MIN : (int32_t)v);
+}
+
+#ifndef UF_NO_F32
 void uf_f32_cascade_block(const uf_f32_section *sos, uf_f32_state *state, unsigned sections,
                           const float *in, float *out, unsigned n) {
     unsigned i;
     for (i = 0; i < n; ++i) out[i] = uf_f32_cascade(sos, state, sections, in[i]);
 }
+#endif
 
+#ifndef UF_NO_Q15
 void uf_q15_cascade_block(const uf_q15_section *sos, uf_q15_state *state, unsigned sections,
                           const int16_t *in, int32_t *out, unsigned n) {
     unsigned i;
     for (i = 0; i < n; ++i) out[i] = uf_q15_cascade(sos, state, sections, in[i]);
 }
+#endif
 
+#ifndef UF_NO_Q31
 void uf_q31_cascade_block(const uf_q31_section *sos, uf_q31_state *state, unsigned sections,
                           const int32_t *in, int32_t *out, unsigned n) {
     unsigned i;
     for (i = 0; i < n; ++i) out[i] = uf_q31_cascade(sos, state, sections, in[i]);
 }
+#endif
 
 void uf_limiter_init(uf_limiter *limiter, float ceiling, float release) {
     limiter->ceiling = ceiling;

@@ -24,14 +24,15 @@ const DRIVER: &str = r#"
 #include <stdlib.h>
 
 /* driver NAME N IN OUT CEILING_BITS RELEASE_BITS: IN holds n f32, n int16, n int32;
- * OUT gets the f32, Q15 and Q31 cascades' outputs and the limited f32 output. */
+ * OUT gets the f32, Q15 and Q31 cascades' outputs, the limited f32 output, and the Q15
+ * cascade's output times the material's fixed-point gain. */
 int main(int argc, char **argv) {
     const uf_material *m;
     FILE *in, *out;
     long n, i;
     float *xf, *yf, *yl;
     int16_t *x15;
-    int32_t *y15, *x31, *y31;
+    int32_t *y15, *x31, *y31, *g15;
     uf_f32_state sf[UF_MAX_SECTIONS], bf[UF_MAX_SECTIONS];
     uf_q15_state s15[UF_MAX_SECTIONS], b15[UF_MAX_SECTIONS];
     uf_q31_state s31[UF_MAX_SECTIONS], b31[UF_MAX_SECTIONS];
@@ -49,7 +50,8 @@ int main(int argc, char **argv) {
     yl = malloc(sizeof(float) * (size_t)n);
     x15 = malloc(sizeof(int16_t) * (size_t)n); y15 = malloc(sizeof(int32_t) * (size_t)n);
     x31 = malloc(sizeof(int32_t) * (size_t)n); y31 = malloc(sizeof(int32_t) * (size_t)n);
-    if (!xf || !yf || !yl || !x15 || !y15 || !x31 || !y31) return 4;
+    g15 = malloc(sizeof(int32_t) * (size_t)n);
+    if (!xf || !yf || !yl || !x15 || !y15 || !x31 || !y31 || !g15) return 4;
     in = fopen(argv[3], "rb");
     if (in == 0) return 5;
     if (fread(xf, sizeof(float), (size_t)n, in) != (size_t)n) return 6;
@@ -65,6 +67,7 @@ int main(int argc, char **argv) {
         yl[i] = uf_limiter_tick(&lim, yf[i] * m->gain);
         y15[i] = m->q15 ? uf_q15_cascade(m->q15, s15, m->sections, x15[i]) : 0;
         y31[i] = m->q31 ? uf_q31_cascade(m->q31, s31, m->sections, x31[i]) : 0;
+        g15[i] = uf_q31_gain(m, y15[i]);
     }
     /* The block functions, in blocks of 7 (one short at the end): the same bits. */
     uf_f32_reset(bf, m->sections);
@@ -87,8 +90,9 @@ int main(int argc, char **argv) {
     fwrite(y15, sizeof(int32_t), (size_t)n, out);
     fwrite(y31, sizeof(int32_t), (size_t)n, out);
     fwrite(yl, sizeof(float), (size_t)n, out);
+    fwrite(g15, sizeof(int32_t), (size_t)n, out);
     fclose(out);
-    free(xf); free(yf); free(yl); free(x15); free(y15); free(x31); free(y31);
+    free(xf); free(yf); free(yl); free(x15); free(y15); free(x31); free(y31); free(g15);
     return 0;
 }
 "#;
@@ -152,6 +156,8 @@ struct Outputs {
     q15: Vec<i32>,
     q31: Vec<i32>,
     limited: Vec<f32>,
+    /// The Q15 cascade's output times the fixed-point gain.
+    gained: Vec<i32>,
 }
 
 fn run(exe: &Path, dir: &Path, name: &str, x: &[f64], ceiling: f32, release: f32) -> Outputs {
@@ -179,10 +185,11 @@ fn run(exe: &Path, dir: &Path, name: &str, x: &[f64], ceiling: f32, release: f32
         .unwrap();
     assert!(status.success(), "driver on {name}: {status}");
     let out = std::fs::read(&output).unwrap();
-    assert_eq!(out.len(), n * 16);
+    assert_eq!(out.len(), n * 20);
     let (f, rest) = out.split_at(4 * n);
     let (q15, rest) = rest.split_at(4 * n);
-    let (q31, limited) = rest.split_at(4 * n);
+    let (q31, rest) = rest.split_at(4 * n);
+    let (limited, gained) = rest.split_at(4 * n);
     Outputs {
         f32: f
             .chunks(4)
@@ -199,6 +206,10 @@ fn run(exe: &Path, dir: &Path, name: &str, x: &[f64], ceiling: f32, release: f32
         limited: limited
             .chunks(4)
             .map(|c| f32::from_ne_bytes(c.try_into().unwrap()))
+            .collect(),
+        gained: gained
+            .chunks(4)
+            .map(|c| i32::from_ne_bytes(c.try_into().unwrap()))
             .collect(),
     }
 }
@@ -289,6 +300,16 @@ fn exported_c_matches_rust_for_every_builtin_material() {
                 assert_eq!(got.q31[i], y31, "{} {what}: Q31 sample {i}", m.name);
                 assert_eq!(got.limited[i], yl, "{} {what}: limiter sample {i}", m.name);
                 assert!(got.limited[i].abs() <= limiter.ceiling());
+                // The fixed-point gain: the float gain within 2^-15 relative, plus the
+                // shift's rounding (one unit, towards minus infinity).
+                let want = f64::from(y15) * m.gain;
+                let err = (f64::from(got.gained[i]) - want).abs();
+                assert!(
+                    want.abs() >= f64::from(i32::MAX) || err <= want.abs() * 2f64.powi(-15) + 1.0,
+                    "{} {what}: gain sample {i}: {} for {want}",
+                    m.name,
+                    got.gained[i]
+                );
                 max_f32_err = max_f32_err.max((got.f32[i] - yf).abs());
             }
             let peak = got.f32.iter().fold(0.0f32, |p, v| p.max(v.abs()));
@@ -430,5 +451,132 @@ fn header_of_a_small_library_matches_its_golden_file() {
     assert_eq!(
         header, expected,
         "the header changed; UNDERFOOT_BLESS=1 to accept"
+    );
+}
+
+/// The symbols of a linked program (`nm`), or `None` without `nm`.
+fn symbols(program: &Path) -> Option<Vec<String>> {
+    let out = Command::new("nm").arg(program).output().ok()?;
+    assert!(out.status.success(), "nm {}", program.display());
+    Some(
+        String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .filter_map(|l| l.split_whitespace().last().map(str::to_owned))
+            .collect(),
+    )
+}
+
+/// Unused materials and formats cost no flash: a program that plays one material in Q15,
+/// built as the header says (`UF_NO_INDEX`, `UF_NO_F32`, `UF_NO_Q31`, per-section
+/// objects, `--gc-sections`), keeps that material's Q15 table and nothing of the other
+/// materials, formats or the index; the same program through `uf_find` keeps every
+/// material (so the check can tell).
+#[test]
+#[ignore = "slow tier: compiles C"]
+fn a_firmware_links_only_the_material_and_format_it_plays() {
+    let Some(cc) = compiler() else { return };
+    let exported =
+        export::export_library(builtin(), "built-in", &[], &ExportConfig::default()).unwrap();
+    assert!(exported.materials.len() >= 3);
+    let header = c::header(&exported);
+    let id = header
+        .lines()
+        .filter_map(|l| l.strip_prefix("extern const uf_material "))
+        .nth(1)
+        .and_then(|l| l.split(';').next())
+        .expect("a second material's object")
+        .to_owned();
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("materials.h"), &header).unwrap();
+    let play = |name: &str, defines: &str, material: &str| {
+        let src = dir.path().join(format!("{name}.c"));
+        std::fs::write(
+            &src,
+            format!(
+                "{defines}#define UNDERFOOT_IMPLEMENTATION\n#include \"materials.h\"\n\
+                 int main(void) {{\n\
+                 const uf_material *m = {material};\n\
+                 uf_q15_state s[UF_MAX_SECTIONS];\n\
+                 int16_t x[8] = {{1000}};\n\
+                 int32_t y[8];\n\
+                 if (m == 0) return 1;\n\
+                 uf_q15_reset(s, m->sections);\n\
+                 uf_q15_cascade_block(m->q15, s, m->sections, x, y, 8);\n\
+                 return (int)(uf_q31_clamp(uf_q31_gain(m, y[7]), 1 << 30) & 1);\n}}\n"
+            ),
+        )
+        .unwrap();
+        let exe = dir.path().join(name);
+        let result = Command::new(&cc)
+            .args([
+                "-std=c99",
+                "-Wall",
+                "-Wextra",
+                "-Werror",
+                "-pedantic",
+                "-Os",
+                "-ffunction-sections",
+                "-fdata-sections",
+                "-Wl,--gc-sections",
+                "-o",
+            ])
+            .arg(&exe)
+            .arg(&src)
+            .output()
+            .unwrap();
+        assert!(
+            result.status.success(),
+            "{cc} {name}.c: {}",
+            String::from_utf8_lossy(&result.stderr)
+        );
+        exe
+    };
+    let lean = play(
+        "lean",
+        "#define UF_NO_INDEX\n#define UF_NO_F32\n#define UF_NO_Q31\n",
+        &format!("&{id}"),
+    );
+    let Some(kept) = symbols(&lean) else {
+        assert!(
+            std::env::var("UNDERFOOT_REQUIRE_CC").as_deref() != Ok("1"),
+            "UNDERFOOT_REQUIRE_CC=1 but there is no nm"
+        );
+        eprintln!("firmware: no nm; skipping the link check");
+        return;
+    };
+    let tables = |syms: &[String]| -> Vec<String> {
+        syms.iter()
+            .filter(|s| {
+                s.starts_with("uf_m") && s.as_bytes().get(4).is_some_and(u8::is_ascii_digit)
+            })
+            .cloned()
+            .collect()
+    };
+    let lean_tables = tables(&kept);
+    eprintln!("one material, Q15 only: {lean_tables:?}");
+    assert!(
+        lean_tables.contains(&format!("{id}_q15")),
+        "{id}_q15 missing from {lean_tables:?}"
+    );
+    assert!(
+        lean_tables
+            .iter()
+            .all(|s| s == &id || s == &format!("{id}_q15")),
+        "other tables linked: {lean_tables:?}"
+    );
+    for gone in [
+        "uf_materials",
+        "uf_find",
+        "uf_f32_cascade",
+        "uf_q31_cascade",
+    ] {
+        assert!(!kept.iter().any(|s| s == gone), "{gone} linked");
+    }
+    // Through the index, every material's tables stay.
+    let full = play("full", "", "uf_find(\"gravel\")");
+    let all = tables(&symbols(&full).unwrap());
+    assert!(
+        all.len() >= 3 * exported.materials.len(),
+        "the index should keep every table: {all:?}"
     );
 }
