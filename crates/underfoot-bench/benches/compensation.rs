@@ -65,6 +65,7 @@ fn equalizer(c: &mut Criterion) {
         EqualizerConfig::default(),
         Realisation::default(),
         2,
+        false,
     )
     .expect("equalizes")
     .weights;

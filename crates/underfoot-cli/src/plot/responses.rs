@@ -30,6 +30,9 @@ const CURVE_COLOURS: [RGBColor; 6] = [
     RGBColor(0xE6, 0x9F, 0x00),
 ];
 
+/// The height of each further legend row, in pixels.
+const LEGEND_ROW: u32 = 18;
+
 /// Draws magnitude responses (dB on a log-frequency axis) in one panel: an equalizer's
 /// passes against flat, or a limb model against its measurement.
 pub fn draw_responses(
@@ -127,14 +130,22 @@ fn draw_response_panel<DB: DrawingBackend>(
             .iter()
             .map(|c| 25 + width(&c.label, &label_style, 13.0) + 20)
             .collect();
-        let mut x = w as i32 - 8 - widths.iter().sum::<i32>();
+        let right = w as i32 - 8;
+        let mut x = right - widths.iter().sum::<i32>();
         let mut y = row_y;
-        if x < title_end + 24 {
+        // Below the title, in as many rows as it takes: never past the right edge.
+        let below = x < title_end + 24;
+        if below {
             legend_drop = 20;
             y = row_y + legend_drop as i32;
-            x = x.max(12);
+            x = 12;
         }
         for (i, (c, width)) in curves.iter().zip(&widths).enumerate() {
+            if below && x > 12 && x + width > right {
+                legend_drop += LEGEND_ROW;
+                y += LEGEND_ROW as i32;
+                x = 12;
+            }
             area.draw(&PathElement::new(vec![(x, y), (x + 20, y)], style(i)))?;
             area.draw(&Text::new(
                 c.label.clone(),

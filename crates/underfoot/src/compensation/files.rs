@@ -142,6 +142,14 @@ pub struct PassFigures {
     pub deviation_db: f64,
     /// Peak deviation from flat, dB.
     pub peak_db: f64,
+    /// Whether the pass measured the best deviation so far (files written before passes
+    /// could be refused have every pass kept).
+    #[serde(default = "kept_by_default")]
+    pub kept: bool,
+}
+
+fn kept_by_default() -> bool {
+    true
 }
 
 impl From<&PassReport> for PassFigures {
@@ -150,6 +158,7 @@ impl From<&PassReport> for PassFigures {
             pass: p.pass,
             deviation_db: p.deviation.0,
             peak_db: p.peak.0,
+            kept: p.kept,
         }
     }
 }

@@ -46,7 +46,10 @@
 //! assert!(bare.deviation_from_flat_db().0 > 2.0);
 //!
 //! // Pass 1 measures it, pass 2 measures it through the weights pass 1 corrected.
-//! let eq = equalize(&mut tile, &sweep, EqualizerConfig::default(), Realisation::default(), 2)?;
+//! // (`false`: the filter keeps the length given; `calibrate equalize --taps auto` lets it
+//! // grow where the weights need it.)
+//! let config = EqualizerConfig::default();
+//! let eq = equalize(&mut tile, &sweep, config, Realisation::default(), 2, false)?;
 //! assert!(eq.passes[1].deviation.0 < 0.5 * eq.passes[0].deviation.0);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```

@@ -24,8 +24,9 @@
 //!
 //! The peak's *prominence* is its height over the RMS of `r` across the searched lags:
 //! for noise alone it is about `sqrt(2 ln(2 max_lag))` (4.4 for 10^4 lags); a real
-//! alignment stands far above that. [`estimate`] reports it and the caller decides
-//! (the live adaptation wants 8 or more, and two estimates in a row that agree).
+//! alignment stands far above that. [`DelayEstimator::estimate`] reports it and the
+//! caller decides (the live adaptation wants 8 or more, and two estimates in a row that
+//! agree).
 //!
 //! The estimate is used to pair each drive sample with the sensor sample it caused, for
 //! the equalizer's online adaptation ([`crate::compensation::adapt`]): there an error of a

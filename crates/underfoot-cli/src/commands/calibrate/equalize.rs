@@ -6,7 +6,9 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::Args;
 use underfoot::atomic_file::OutputFile;
-use underfoot::compensation::equalizer::{EqualizerConfig, PassReport, Realisation, equalize};
+use underfoot::compensation::equalizer::{
+    Capped, EqualizerConfig, EqualizerFilter, PassReport, Realisation, auto_taps, equalize,
+};
 use underfoot::compensation::files::{EqualizerFile, PassFigures};
 use underfoot::document;
 use underfoot::io::spec::{self, SpecError};
@@ -27,6 +29,21 @@ fn parse_taps(s: &str) -> Result<usize, SpecError> {
     spec::parse_count(s, "taps", 1, 1 << 16)
 }
 
+/// `--taps`: a length, or sized from the band and the weights.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Taps {
+    Auto,
+    Fixed(usize),
+}
+
+fn parse_taps_arg(s: &str) -> Result<Taps, SpecError> {
+    if s == "auto" {
+        Ok(Taps::Auto)
+    } else {
+        parse_taps(s).map(Taps::Fixed)
+    }
+}
+
 /// `underfoot calibrate equalize`.
 #[derive(Debug, Clone, Args)]
 pub struct EqualizeArgs {
@@ -42,9 +59,11 @@ pub struct EqualizeArgs {
     /// bank (the uniform filter bank, N - 1 samples of delay).
     #[arg(long, default_value = "low-delay", value_name = "KIND")]
     pub realisation: String,
-    /// Low-delay only: filter length in taps.
-    #[arg(long, default_value_t = 2048, value_name = "N", value_parser = parse_taps)]
-    pub taps: usize,
+    /// Low-delay only: filter length in taps, or `auto`: the power of two at least
+    /// 4 fs / (the band's lowest frequency), lengthened while the filter misses the
+    /// weights by more than 0.1 dB RMS (up to 32768).
+    #[arg(long, default_value = "auto", value_name = "N|auto", value_parser = parse_taps_arg)]
+    pub taps: Taps,
     /// Size N of the uniform bank that carries the weights (bins fs/N apart).
     #[arg(long, default_value_t = 4096, value_name = "N", value_parser = parse_taps)]
     pub bins: usize,
@@ -66,11 +85,6 @@ pub(super) fn run(args: &EqualizeArgs) -> anyhow::Result<()> {
     let s = &args.settings;
     let inputs: Vec<&Path> = s.input_file().into_iter().collect();
     let (out, plot_out) = check_outputs(&args.out, args.plot.as_deref(), &inputs)?;
-    let realisation = match args.realisation.as_str() {
-        "low-delay" => Realisation::LowDelay { taps: args.taps },
-        "bank" => Realisation::Bank,
-        other => anyhow::bail!("--realisation {other:?}: expected low-delay or bank"),
-    };
     anyhow::ensure!(
         (1..=10).contains(&args.passes),
         "--passes {}: need 1 to 10",
@@ -84,53 +98,136 @@ pub(super) fn run(args: &EqualizeArgs) -> anyhow::Result<()> {
         max_boost: Decibels(args.max_boost_db),
         ..EqualizerConfig::default()
     };
-    let eq = equalize(device.as_mut(), &sweep, config, realisation, args.passes)
-        .context("equalizing")?;
-    let passes: Vec<PassFigures> = eq.passes.iter().map(PassFigures::from).collect();
-    let latency_ms = match realisation {
-        Realisation::Bank => (args.bins - 1) as f64 / f64::from(s.rate) * 1e3,
-        Realisation::LowDelay { .. } => 0.0,
+    let rate = sweep.config().rate;
+    let (realisation, grow) = match (args.realisation.as_str(), args.taps) {
+        ("low-delay", Taps::Auto) => (
+            Realisation::LowDelay {
+                taps: auto_taps(&config, rate),
+            },
+            true,
+        ),
+        ("low-delay", Taps::Fixed(taps)) => (Realisation::LowDelay { taps }, false),
+        ("bank", _) => (Realisation::Bank, false),
+        (other, _) => anyhow::bail!("--realisation {other:?}: expected low-delay or bank"),
     };
-    let file = EqualizerFile::new(eq.weights, realisation, passes.clone(), description);
+    let eq = equalize(
+        device.as_mut(),
+        &sweep,
+        config,
+        realisation,
+        args.passes,
+        grow,
+    )
+    .context("equalizing")?;
+    let passes: Vec<PassFigures> = eq.passes.iter().map(PassFigures::from).collect();
+    // What the realisation costs: the bank's bulk delay, or the low-delay filter's group
+    // delay at the band's low edge (it has no bulk delay).
+    let filter = EqualizerFilter::new(&eq.weights, eq.realisation)?;
+    let delay = match eq.realisation {
+        Realisation::Bank => format!(
+            "{:.1} ms bulk delay",
+            (args.bins - 1) as f64 / f64::from(s.rate) * 1e3
+        ),
+        Realisation::LowDelay { .. } => format!(
+            "no bulk delay, {:.1} ms group delay at {} Hz, misses the weights by {:.2} dB RMS",
+            filter.group_delay(s.band.lo).map_or(0.0, |d| d.0 * 1e3),
+            s.band.lo.0,
+            filter.realisation_error(&eq.weights).unwrap_or(0.0)
+        ),
+    };
+    let file = EqualizerFile::new(eq.weights.clone(), eq.realisation, passes, description);
     document::save_to(&out, &file)?;
-    let rows: Vec<Vec<String>> = passes
+    let rows: Vec<Vec<String>> = eq
+        .passes
         .iter()
         .map(|p| {
             vec![
                 p.pass.to_string(),
-                format!("{:.2}", p.deviation_db),
-                format!("{:.2}", p.peak_db),
+                format!("{:.2}", p.deviation.0),
+                format!("{:.2}", p.peak.0),
+                p.taps.map_or_else(|| "-".to_owned(), |t| t.to_string()),
+                if p.pass == eq.best {
+                    "kept: written".to_owned()
+                } else if p.kept {
+                    "kept".to_owned()
+                } else {
+                    format!("worse: not kept, step now {:.2}", p.step)
+                },
             ]
         })
         .collect();
     emit(&format!(
-        "equalizing {} over {}-{} Hz ({}, {:.1} ms bulk delay)\n{}wrote {}\n",
+        "equalizing {} over {}-{} Hz ({}; {delay})\n{}{}wrote {} (pass {})\n",
         file.description,
         s.band.lo.0,
         s.band.hi.0,
-        match realisation {
+        match eq.realisation {
             Realisation::Bank => format!("filter bank, N = {}", args.bins),
-            Realisation::LowDelay { taps } =>
-                format!("low-delay minimum-phase filter, {taps} taps"),
+            Realisation::LowDelay { taps } => format!(
+                "low-delay minimum-phase filter, {taps} taps{}",
+                if grow { ", sized automatically" } else { "" }
+            ),
         },
-        latency_ms,
         table(
             &[
                 ("pass", Align::Right),
                 ("deviation RMS (dB)", Align::Right),
                 ("peak (dB)", Align::Right),
+                ("taps", Align::Right),
+                ("weights", Align::Left),
             ],
             &rows
         ),
-        args.out.display()
+        capped_report(&eq.capped, eq.cap_residual, &config),
+        args.out.display(),
+        eq.best
     ))?;
     if let Some(plot_out) = &plot_out {
-        draw_passes(plot_out, &eq.passes)?;
+        draw_passes(plot_out, &eq.passes, eq.best, &eq.capped)?;
     }
     Ok(())
 }
 
-fn draw_passes(out: &OutputFile, passes: &[PassReport]) -> anyhow::Result<()> {
+/// Where the bounds stopped the correction, and what that leaves.
+fn capped_report(capped: &[Capped], residual: Decibels, config: &EqualizerConfig) -> String {
+    if capped.is_empty() {
+        return String::new();
+    }
+    let ranges: Vec<String> = capped
+        .iter()
+        .map(|c| {
+            let at = if c.hi.0 > c.lo.0 {
+                format!("{:.0}-{:.0} Hz", c.lo.0, c.hi.0)
+            } else {
+                format!("{:.0} Hz", c.lo.0)
+            };
+            format!("{at} ({:.1} dB short)", c.short.0)
+        })
+        .collect();
+    let boost = capped.iter().any(|c| c.boost);
+    format!(
+        "capped by the {} bound at {}: {:.2} dB RMS of the deviation is left there{}\n",
+        if boost {
+            format!("+{} dB boost", config.max_boost.0)
+        } else {
+            format!("-{} dB cut", config.max_cut.0)
+        },
+        ranges.join(", "),
+        residual.0,
+        if boost {
+            " (raise --max-boost-db to correct it, if the actuator has the headroom)"
+        } else {
+            ""
+        }
+    )
+}
+
+fn draw_passes(
+    out: &OutputFile,
+    passes: &[PassReport],
+    best: usize,
+    capped: &[Capped],
+) -> anyhow::Result<()> {
     let data: Vec<(Vec<f64>, Vec<f64>)> = passes
         .iter()
         .map(|p| {
@@ -140,14 +237,55 @@ fn draw_passes(out: &OutputFile, passes: &[PassReport]) -> anyhow::Result<()> {
             )
         })
         .collect();
+    // The best pass's measurement where a bound stopped the correction, one segment
+    // per range, drawn over it.
+    let (best_f, best_db) = &data[best - 1];
+    let marks: Vec<(String, Vec<f64>, Vec<f64>)> = capped
+        .iter()
+        .map(|c| {
+            let (f, db): (Vec<f64>, Vec<f64>) = best_f
+                .iter()
+                .zip(best_db)
+                .filter(|(f, _)| **f >= c.lo.0 * 0.97 && **f <= c.hi.0 * 1.03)
+                .map(|(f, d)| (*f, *d))
+                .unzip();
+            (
+                format!(
+                    "{} capped {:.0}-{:.0} Hz",
+                    if c.boost { "boost" } else { "cut" },
+                    c.lo.0,
+                    c.hi.0
+                ),
+                f,
+                db,
+            )
+        })
+        .filter(|(_, f, _)| f.len() >= 2)
+        .collect();
     let curves: Vec<Curve<'_>> = passes
         .iter()
         .zip(&data)
         .map(|(p, (f, db))| Curve {
-            label: format!("pass {} ({:.2} dB)", p.pass, p.deviation.0),
+            label: format!(
+                "pass {} ({:.2} dB){}",
+                p.pass,
+                p.deviation.0,
+                if p.pass == best {
+                    ", kept"
+                } else if p.kept {
+                    ""
+                } else {
+                    ", worse"
+                }
+            ),
             freqs_hz: f,
             db,
         })
+        .chain(marks.iter().map(|(label, f, db)| Curve {
+            label: label.clone(),
+            freqs_hz: f,
+            db,
+        }))
         .collect();
     plotted(
         out.path(),

@@ -115,6 +115,63 @@ impl EqualizerFilter {
         self.rate
     }
 
+    /// How far the low-delay filter's magnitude misses `weights`: the RMS, over the
+    /// band's bins, of its response in dB minus the weight; `None` for the bank (which
+    /// applies the weights exactly at its bins). Allocates nothing; costs a DFT of the
+    /// taps per bin: for reports and for sizing, not the audio thread.
+    #[must_use]
+    pub fn realisation_error(&self, weights: &SpectralWeights) -> Option<f64> {
+        let Inner::LowDelay { taps, .. } = &self.inner else {
+            return None;
+        };
+        let band = weights.config.band;
+        let (mut sum, mut n) = (0.0, 0usize);
+        for k in weights.corrected() {
+            let f = weights.bin_frequency(k);
+            if f.0 < band.lo.0 || f.0 > band.hi.0 {
+                continue;
+            }
+            let h = crate::numeric::dtft(taps, self.rate.omega(f)).norm();
+            let e = 20.0 * h.max(1e-12).log10() - weights.gains_db[k];
+            sum += e * e;
+            n += 1;
+        }
+        (n > 0).then(|| (sum / n as f64).sqrt())
+    }
+
+    /// The low-delay filter's group delay at `f`: `Re(Σ n h[n] e^{-jωn} / Σ h[n]
+    /// e^{-jωn})` samples, as time. What a longer filter costs: it has no bulk delay, but
+    /// low frequencies come out this much later. `None` for the bank (its delay is
+    /// [`latency`](Self::latency)) or where the response vanishes.
+    #[must_use]
+    pub fn group_delay(&self, f: crate::units::Hz) -> Option<crate::units::Seconds> {
+        let Inner::LowDelay { taps, .. } = &self.inner else {
+            return None;
+        };
+        let w = self.rate.omega(f);
+        let step = num_complex::Complex64::from_polar(1.0, -w);
+        let mut phasor = num_complex::Complex64::new(1.0, 0.0);
+        let (mut h, mut nh) = (
+            num_complex::Complex64::default(),
+            num_complex::Complex64::default(),
+        );
+        for (n, &v) in taps.iter().enumerate() {
+            h += phasor * v;
+            nh += phasor * (v * n as f64);
+            phasor *= step;
+        }
+        (h.norm() > 1e-12).then(|| crate::units::Seconds((nh / h).re / self.rate.hz()))
+    }
+
+    /// The low-delay filter's length, or `None` for the bank.
+    #[must_use]
+    pub fn taps(&self) -> Option<usize> {
+        match &self.inner {
+            Inner::LowDelay { taps, .. } => Some(taps.len()),
+            Inner::Bank(_) => None,
+        }
+    }
+
     /// Realises new weights of the same shape (same `bins`), smoothly: the bank changes
     /// gains from its next frame, the FIR cross-fades. Returns `false` (and keeps the old
     /// weights) for weights of another shape or non-finite ones. Never allocates; the

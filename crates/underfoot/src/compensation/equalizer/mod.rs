@@ -21,5 +21,8 @@ pub mod weights;
 
 pub use filter::{EqualizerFilter, Realisation};
 pub use static_inverse::{Inverted, StaticInverse};
-pub use tune::{Equalization, Equalized, PassReport, equalize, flatness};
+pub use tune::{
+    Capped, Equalization, Equalized, MAX_AUTO_TAPS, MAX_REALISATION_ERROR, PassReport, auto_taps,
+    equalize, flatness,
+};
 pub use weights::{EqualizerConfig, SpectralWeights};

@@ -158,6 +158,7 @@ fn walk(frame: Option<usize>) -> (f64, f64) {
         EqualizerConfig::default(),
         Realisation::Bank,
         3,
+        false,
     )
     .unwrap();
     let cfg = AdaptConfig {

@@ -82,6 +82,7 @@ fn a_session_compensates_simulated_users() {
         EqualizerConfig::default(),
         Realisation::default(),
         3,
+        false,
     )
     .unwrap();
     let device_only = Compensation {
