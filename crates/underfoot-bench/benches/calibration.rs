@@ -15,33 +15,19 @@
 //! `scripts/time-fit`, the median of five runs of the release binary.
 
 use std::hint::black_box;
-use std::path::PathBuf;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use underfoot::analysis::measure;
 use underfoot::material::build::{BuildConfig, build_material};
 use underfoot::physical::EstimateConfig;
 use underfoot::physical::estimate::estimate_measured;
-use underfoot::recording::{Recording, read};
-
-fn shared(material: &str) -> Option<Vec<Recording>> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/footsteps")
-        .join(material);
-    let mut files: Vec<_> = std::fs::read_dir(dir)
-        .ok()?
-        .filter_map(Result::ok)
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "ogg"))
-        .collect();
-    files.sort();
-    files.iter().map(|p| read(p, None).ok()).collect()
-}
+use underfoot::recording::Recording;
+use underfoot_bench::shared_recordings;
 
 fn bench(c: &mut Criterion) {
     let materials: Vec<(&str, Vec<Recording>)> = ["gravel", "hard"]
         .into_iter()
-        .filter_map(|m| shared(m).map(|r| (m, r)))
+        .filter_map(|m| shared_recordings(m).map(|r| (m, r)))
         .collect();
     if materials.is_empty() {
         eprintln!("note: shared recordings absent (../shared/data/footsteps): nothing to time");

@@ -5,28 +5,15 @@
 //! seeded strikes through a known filter) so the benchmark runs anywhere.
 
 use std::hint::black_box;
-use std::path::PathBuf;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use underfoot::material::build::{BuildConfig, build_material};
-use underfoot::recording::{Recording, read};
+use underfoot::recording::Recording;
 use underfoot::signal::Sos;
 use underfoot::signal::noise::SplitMix64;
 use underfoot::signal::sos::{Biquad, RootPair};
 use underfoot::units::SampleRate;
-
-fn shared(material: &str) -> Option<Vec<Recording>> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/footsteps")
-        .join(material);
-    let mut files: Vec<_> = std::fs::read_dir(dir)
-        .ok()?
-        .filter_map(Result::ok)
-        .map(|e| e.path())
-        .collect();
-    files.sort();
-    files.iter().map(|p| read(p, None).ok()).collect()
-}
+use underfoot_bench::shared_recordings;
 
 fn synthetic() -> Vec<Recording> {
     let rate = SampleRate(44_100);
@@ -67,7 +54,7 @@ fn bench(c: &mut Criterion) {
     let cfg = BuildConfig::default();
     let mut materials: Vec<(String, Vec<Recording>)> = ["gravel", "hard", "snow"]
         .iter()
-        .filter_map(|m| shared(m).map(|r| ((*m).to_string(), r)))
+        .filter_map(|m| shared_recordings(m).map(|r| ((*m).to_string(), r)))
         .collect();
     if materials.is_empty() {
         eprintln!("shared recordings absent: benchmarking a synthetic material");

@@ -402,11 +402,7 @@ fn jack_loopback_sweep_is_flat_and_aligned() {
     // milliseconds, which spoils a whole sweep; at 1024 frames it runs clean. So this test
     // runs against its own server (`UNDERFOOT_JACK_LOOPBACK=1`, with `JACK_DEFAULT_SERVER`
     // naming a dummy server at 1024 frames; `.ci/run` starts one) and is mandatory there.
-    if std::env::var("UNDERFOOT_JACK_LOOPBACK").as_deref() != Ok("1") {
-        println!(
-            "skipped: set UNDERFOOT_JACK_LOOPBACK=1 and JACK_DEFAULT_SERVER to a JACK server \
-             with large periods (jackd -n NAME -d dummy -r 48000 -p 1024) to run the loopback"
-        );
+    if !loopback_enabled() {
         return;
     }
     let _guard = one_at_a_time();
@@ -675,6 +671,60 @@ fn jack_live_walk_plays_as_the_offline_render() {
     }
 }
 
+/// Whether the loopback tests run (`UNDERFOOT_JACK_LOOPBACK=1`); says how when not.
+#[cfg(feature = "jack")]
+fn loopback_enabled() -> bool {
+    let on = std::env::var("UNDERFOOT_JACK_LOOPBACK").as_deref() == Ok("1");
+    if !on {
+        println!(
+            "skipped: set UNDERFOOT_JACK_LOOPBACK=1 and JACK_DEFAULT_SERVER to a JACK server \
+             with large periods (jackd -n NAME -d dummy -r 48000 -p 1024) to run the loopback"
+        );
+    }
+    on
+}
+
+/// What the adaptation tests start from: one channel on gravel at `rate` through a flat
+/// equalizer run as the bank; the engine's settings, the bank, gravel's slot, the weights.
+#[cfg(feature = "jack")]
+fn flat_equalized_gravel(
+    rate: SampleRate,
+) -> (
+    underfoot::engine::EngineConfig,
+    underfoot::engine::MaterialBank,
+    u16,
+    underfoot::compensation::equalizer::SpectralWeights,
+) {
+    use underfoot::compensation::chain::Compensation;
+    use underfoot::compensation::equalizer::{EqualizerConfig, Realisation, SpectralWeights};
+    use underfoot::engine::{EngineConfig, MaterialBank};
+    use underfoot::force::gait::nominal_step;
+    use underfoot::material::builtin::builtin;
+    use underfoot::synthesis::VoiceConfig;
+    use underfoot::units::Newtons;
+
+    let weights = SpectralWeights::flat(EqualizerConfig::default(), rate).unwrap();
+    let bank = MaterialBank::prepare(
+        builtin(),
+        rate,
+        &VoiceConfig::default(),
+        &nominal_step(70.0, 1.8, rate.hz()),
+        Newtons::weight_of(70.0),
+    )
+    .unwrap();
+    let slot = bank.slot("gravel").unwrap();
+    let config = EngineConfig {
+        rate,
+        channels: 1,
+        compensation: Compensation {
+            equalizer: Some((weights.clone(), Realisation::Bank)),
+            limb: None,
+        },
+        ..EngineConfig::default()
+    };
+    (config, bank, slot, weights)
+}
+
 /// The JACK ports that exist now (the server named by `JACK_DEFAULT_SERVER`).
 #[cfg(feature = "jack")]
 fn jack_ports() -> Vec<String> {
@@ -732,47 +782,24 @@ fn jack_connect(from: &str, to: &str) {
 #[cfg(feature = "jack")]
 #[test]
 fn jack_loopback_adaptation_flattens_a_simulated_leg_within_30_s() {
-    use underfoot::compensation::chain::Compensation;
-    use underfoot::compensation::equalizer::{EqualizerConfig, Realisation, SpectralWeights};
+    use underfoot::compensation::equalizer::SpectralWeights;
     use underfoot::compensation::limb::{DEFAULT_G2, LimbModel, LimbParams};
-    use underfoot::engine::{self, EngineConfig, MaterialBank, TimedEvent};
-    use underfoot::force::gait::{self, GaitConfig, nominal_step};
+    use underfoot::engine::{self, TimedEvent};
+    use underfoot::force::gait::{self, GaitConfig};
     use underfoot::io::audio::AudioInput;
     use underfoot::io::replay::ReplaySource;
     use underfoot::io::{EventSource, SourceState};
     use underfoot::live::adapt::{AdaptParts, AdaptSettings};
-    use underfoot::material::builtin::builtin;
     use underfoot::signal::noise::SplitMix64;
-    use underfoot::synthesis::VoiceConfig;
-    use underfoot::units::{Band, Hz, Newtons};
+    use underfoot::sim::SimulatedUser;
+    use underfoot::units::Band;
 
-    if std::env::var("UNDERFOOT_JACK_LOOPBACK").as_deref() != Ok("1") {
-        println!(
-            "skipped: set UNDERFOOT_JACK_LOOPBACK=1 (see jack_loopback_sweep_is_flat_and_aligned)"
-        );
+    if !loopback_enabled() {
         return;
     }
     let _guard = one_at_a_time();
     let rate = SampleRate(48_000);
-    let weights = SpectralWeights::flat(EqualizerConfig::default(), rate).unwrap();
-    let bank = MaterialBank::prepare(
-        builtin(),
-        rate,
-        &VoiceConfig::default(),
-        &nominal_step(70.0, 1.8, rate.hz()),
-        Newtons::weight_of(70.0),
-    )
-    .unwrap();
-    let slot = bank.slot("gravel").unwrap();
-    let config = EngineConfig {
-        rate,
-        channels: 1,
-        compensation: Compensation {
-            equalizer: Some((weights.clone(), Realisation::Bank)),
-            limb: None,
-        },
-        ..EngineConfig::default()
-    };
+    let (config, bank, slot, weights) = flat_equalized_gravel(rate);
     let (mut ctl, mut eng) = engine::build(&config, bank, &[slot]).unwrap();
     let parts = AdaptParts::new(
         &AdaptSettings::default(),
@@ -787,12 +814,7 @@ fn jack_loopback_adaptation_flattens_a_simulated_leg_within_30_s() {
 
     // The leg, and its true response to measure against.
     let limb = LimbModel::new(LimbParams::TABLE1_MEAN, DEFAULT_G2, 1.0).unwrap();
-    let sos = limb
-        .sos(
-            rate,
-            Hz(limb.params.skin_resonance().0.min(0.4 * rate.hz())),
-        )
-        .unwrap();
+    let sos = SimulatedUser::limb_sections(&limb, rate).unwrap();
     let truth = sos.clone();
     let deviation = |w: &SpectralWeights| {
         let v: Vec<f64> = Band::new(40.0, 1024.0)
@@ -936,44 +958,16 @@ fn jack_loopback_adaptation_flattens_a_simulated_leg_within_30_s() {
 #[test]
 fn jack_loopback_session_adapts_through_its_own_streams() {
     use std::sync::atomic::AtomicBool;
-    use underfoot::compensation::chain::Compensation;
-    use underfoot::compensation::equalizer::{EqualizerConfig, Realisation, SpectralWeights};
-    use underfoot::engine::{EngineConfig, MaterialBank};
-    use underfoot::force::gait::nominal_step;
     use underfoot::io::spec::OutputSpec;
     use underfoot::live::adapt::AdaptSettings;
     use underfoot::live::{Session, SessionConfig, SessionInput};
-    use underfoot::material::builtin::builtin;
-    use underfoot::synthesis::VoiceConfig;
-    use underfoot::units::{Newtons, Seconds};
+    use underfoot::units::Seconds;
 
-    if std::env::var("UNDERFOOT_JACK_LOOPBACK").as_deref() != Ok("1") {
-        println!(
-            "skipped: set UNDERFOOT_JACK_LOOPBACK=1 (see jack_loopback_sweep_is_flat_and_aligned)"
-        );
+    if !loopback_enabled() {
         return;
     }
     let _guard = one_at_a_time();
-    let rate = SampleRate(48_000);
-    let weights = SpectralWeights::flat(EqualizerConfig::default(), rate).unwrap();
-    let bank = MaterialBank::prepare(
-        builtin(),
-        rate,
-        &VoiceConfig::default(),
-        &nominal_step(70.0, 1.8, rate.hz()),
-        Newtons::weight_of(70.0),
-    )
-    .unwrap();
-    let slot = bank.slot("gravel").unwrap();
-    let engine = EngineConfig {
-        rate,
-        channels: 1,
-        compensation: Compensation {
-            equalizer: Some((weights, Realisation::Bank)),
-            limb: None,
-        },
-        ..EngineConfig::default()
-    };
+    let (engine, bank, slot, _) = flat_equalized_gravel(SampleRate(48_000));
     let config = SessionConfig {
         host: "jack".to_owned(),
         duration: Some(Seconds(14.0)),

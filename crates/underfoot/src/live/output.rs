@@ -201,10 +201,7 @@ fn start_audio(
 ) -> Result<(Output, OutputInfo), LiveError> {
     use crate::io::audio::{AudioConfig, AudioOutput};
     let config = AudioConfig {
-        host: host.parse().map_err(|error| LiveError::Host {
-            host: host.to_owned(),
-            error,
-        })?,
+        host: audio_host(host)?,
         device: device.map(str::to_owned),
         // `engine::build` refused more than `u16::MAX` channels.
         channels: channels as u16,
@@ -219,6 +216,15 @@ fn start_audio(
     })?;
     let info = OutputInfo::Audio(output.info().clone());
     Ok((Output::Audio(output), info))
+}
+
+/// The audio host named `host` (`--host`), or the session's error naming it.
+#[cfg(feature = "audio")]
+pub(super) fn audio_host(host: &str) -> Result<crate::io::audio::AudioHost, LiveError> {
+    host.parse().map_err(|error| LiveError::Host {
+        host: host.to_owned(),
+        error,
+    })
 }
 
 #[cfg(not(feature = "audio"))]

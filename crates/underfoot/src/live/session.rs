@@ -306,10 +306,7 @@ impl Session {
             _ => None,
         };
         let input_config = AudioConfig {
-            host: session.host.parse().map_err(|error| LiveError::Host {
-                host: session.host.clone(),
-                error,
-            })?,
+            host: super::output::audio_host(&session.host)?,
             device: settings.device.clone().or(output_device),
             channels: settings.input_channel.saturating_add(1),
             rate: config.rate,

@@ -34,15 +34,25 @@ impl SimulatedUser {
         rate: SampleRate,
     ) -> Result<Self, CompensationError> {
         let tile = SimulatedTile::new(tile, rate)?;
-        limb.validate()?;
-        let prewarp = Hz(limb.params.skin_resonance().0.min(0.4 * rate.hz()));
-        let limb_sos = limb.sos(rate, prewarp)?;
+        let limb_sos = Self::limb_sections(&limb, rate)?;
         Ok(Self {
             tile,
             limb,
             limb_sos,
             rate,
         })
+    }
+
+    /// `limb`'s `H_u` as the simulation runs it at `rate`: bilinear, prewarped at the
+    /// skin's resonance (at most 0.4 fs). Also a leg on its own, between an actuator and
+    /// a sensor on the skin.
+    ///
+    /// # Errors
+    /// As [`LimbModel::validate`] and [`LimbModel::sos`].
+    pub fn limb_sections(limb: &LimbModel, rate: SampleRate) -> Result<Sos, CompensationError> {
+        limb.validate()?;
+        let prewarp = Hz(limb.params.skin_resonance().0.min(0.4 * rate.hz()));
+        limb.sos(rate, prewarp)
     }
 
     /// The limb.

@@ -126,28 +126,27 @@ fn compile(cc: &str, dir: &Path, header: &str) -> std::path::PathBuf {
     )
     .unwrap();
     let exe = dir.join("driver");
-    for (src, out) in [("driver.c", exe.clone()), ("plain.c", dir.join("plain"))] {
-        let result = Command::new(cc)
-            .args([
-                "-std=c99",
-                "-Wall",
-                "-Wextra",
-                "-Werror",
-                "-pedantic",
-                "-O2",
-                "-o",
-            ])
-            .arg(&out)
-            .arg(dir.join(src))
-            .output()
-            .unwrap();
-        assert!(
-            result.status.success(),
-            "{cc} {src}: {}",
-            String::from_utf8_lossy(&result.stderr)
-        );
-    }
+    c99(cc, &dir.join("driver.c"), &exe, &["-O2"]);
+    c99(cc, &dir.join("plain.c"), &dir.join("plain"), &["-O2"]);
     exe
+}
+
+/// Compiles `src` to `out` as strict C99 with every warning an error, plus `flags`.
+fn c99(cc: &str, src: &Path, out: &Path, flags: &[&str]) {
+    let result = Command::new(cc)
+        .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"])
+        .args(flags)
+        .arg("-o")
+        .arg(out)
+        .arg(src)
+        .output()
+        .unwrap();
+    assert!(
+        result.status.success(),
+        "{cc} {}: {}",
+        src.display(),
+        String::from_utf8_lossy(&result.stderr)
+    );
 }
 
 struct Outputs {
@@ -507,27 +506,16 @@ fn a_firmware_links_only_the_material_and_format_it_plays() {
         )
         .unwrap();
         let exe = dir.path().join(name);
-        let result = Command::new(&cc)
-            .args([
-                "-std=c99",
-                "-Wall",
-                "-Wextra",
-                "-Werror",
-                "-pedantic",
+        c99(
+            &cc,
+            &src,
+            &exe,
+            &[
                 "-Os",
                 "-ffunction-sections",
                 "-fdata-sections",
                 "-Wl,--gc-sections",
-                "-o",
-            ])
-            .arg(&exe)
-            .arg(&src)
-            .output()
-            .unwrap();
-        assert!(
-            result.status.success(),
-            "{cc} {name}.c: {}",
-            String::from_utf8_lossy(&result.stderr)
+            ],
         );
         exe
     };

@@ -46,7 +46,8 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::compensation::adapt::{AdaptConfig, Adapter};
-use crate::compensation::equalizer::SpectralWeights;
+use crate::compensation::equalizer::{SpectralWeights, flatness};
+use crate::compensation::sweep::FrequencyResponse;
 use crate::engine::{Controller, Telemetry};
 use crate::signal::delay::DelayEstimator;
 use crate::units::{Decibels, Newtons, SampleRate, Seconds};
@@ -161,24 +162,18 @@ impl DriveTap {
     /// Copies channel `channel` of the interleaved `out` (`device_channels` wide). Never
     /// allocates, locks or blocks.
     pub fn push(&mut self, out: &[f32], device_channels: usize) {
-        let width = device_channels.max(1);
-        let frames = out.len() / width;
         let force = self
             .telemetry
             .force(self.channel)
             .map_or(0.0, |f| f.0 as f32);
-        match self.ring.write_chunk_uninit(frames) {
-            Ok(chunk) => {
-                let channel = self.channel;
-                chunk.fill_from_iter(out.chunks_exact(width).map(|frame| DriveFrame {
-                    drive: frame.get(channel).copied().unwrap_or(0.0),
-                    force,
-                }));
-            }
-            Err(_) => {
-                self.dropped.fetch_add(frames as u64, Ordering::Relaxed);
-            }
-        }
+        push_channel(
+            &mut self.ring,
+            &self.dropped,
+            out,
+            device_channels,
+            self.channel,
+            |drive| DriveFrame { drive, force },
+        );
     }
 }
 
@@ -193,20 +188,40 @@ impl SensorTap {
     /// Copies channel `channel` of the interleaved `input` (`channels` wide). Never
     /// allocates, locks or blocks.
     pub fn push(&mut self, input: &[f32], channels: usize) {
-        let width = channels.max(1);
-        let frames = input.len() / width;
-        match self.ring.write_chunk_uninit(frames) {
-            Ok(chunk) => {
-                let channel = self.channel;
-                chunk.fill_from_iter(
-                    input
-                        .chunks_exact(width)
-                        .map(|frame| frame.get(channel).copied().unwrap_or(0.0)),
-                );
-            }
-            Err(_) => {
-                self.dropped.fetch_add(frames as u64, Ordering::Relaxed);
-            }
+        push_channel(
+            &mut self.ring,
+            &self.dropped,
+            input,
+            channels,
+            self.channel,
+            |v| v,
+        );
+    }
+}
+
+/// Writes channel `channel` of the interleaved `frames` (`width` wide; 0 for a channel
+/// beyond it) into `ring`, each sample as `item` makes it; a ring without room for the
+/// whole buffer takes none of it, and `dropped` counts its frames.
+fn push_channel<T>(
+    ring: &mut rtrb::Producer<T>,
+    dropped: &AtomicU64,
+    frames: &[f32],
+    width: usize,
+    channel: usize,
+    item: impl Fn(f32) -> T,
+) {
+    let width = width.max(1);
+    let n = frames.len() / width;
+    match ring.write_chunk_uninit(n) {
+        Ok(chunk) => {
+            chunk.fill_from_iter(
+                frames
+                    .chunks_exact(width)
+                    .map(|frame| item(frame.get(channel).copied().unwrap_or(0.0))),
+            );
+        }
+        Err(_) => {
+            dropped.fetch_add(n as u64, Ordering::Relaxed);
         }
     }
 }
@@ -404,21 +419,23 @@ impl AdaptLoop {
         while self.next_check <= self.drive.end() && self.next_check <= self.sensor.end() {
             let from = self.next_check - WINDOW as u64;
             let at = self.next_check;
-            let rms = window_rms(&self.drive, from);
-            let estimate =
-                if rms >= MIN_WINDOW_RMS && from >= self.drive.start && from >= self.sensor.start {
-                    for (k, (x, y)) in self.win_x.iter_mut().zip(&mut self.win_y).enumerate() {
-                        let i = from + k as u64;
-                        *x = self.drive.get(i).map_or(0.0, |f| f.drive);
-                        *y = self.sensor.get(i).unwrap_or(0.0);
-                    }
-                    self.estimator
-                        .estimate(&self.win_x, &self.win_y)
-                        .filter(|d| d.prominence >= MIN_PROMINENCE)
-                        .map(|d| d.lag)
-                } else {
-                    None
-                };
+            let estimate = if from >= self.drive.start && from >= self.sensor.start {
+                let mut sum = 0.0;
+                for (k, (x, y)) in self.win_x.iter_mut().zip(&mut self.win_y).enumerate() {
+                    let i = from + k as u64;
+                    *x = self.drive.get(i).map_or(0.0, |f| f.drive);
+                    *y = self.sensor.get(i).unwrap_or(0.0);
+                    sum += f64::from(*x).powi(2);
+                }
+                let rms = (sum / WINDOW as f64).sqrt();
+                (rms >= MIN_WINDOW_RMS)
+                    .then(|| self.estimator.estimate(&self.win_x, &self.win_y))
+                    .flatten()
+                    .filter(|d| d.prominence >= MIN_PROMINENCE)
+                    .map(|d| d.lag)
+            } else {
+                None
+            };
             let agrees = |a: i64, b: i64| (a - b).abs() <= LAG_TOLERANCE;
             match (self.status.delay, estimate) {
                 (Some(lag), Some(new)) if !agrees(lag, new) => {
@@ -503,19 +520,17 @@ impl AdaptLoop {
     fn estimated_deviation(&self) -> Option<Decibels> {
         let loaded = self.adapter.loaded_response();
         let weights = self.adapter.weights();
-        let v: Vec<f64> = loaded
+        // The device as equalized: each trusted bin's estimate through its weight.
+        let (freqs, response) = loaded
             .freqs
             .iter()
             .zip(&loaded.response)
-            .map(|(f, d)| weights.gain_db_at(*f) + 20.0 * d.norm().log10())
-            .filter(|v| v.is_finite())
-            .collect();
-        if v.is_empty() {
-            return None;
-        }
-        let mean = v.iter().sum::<f64>() / v.len() as f64;
-        let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / v.len() as f64;
-        Some(Decibels(var.sqrt()))
+            .filter(|(_, d)| d.norm() > 0.0)
+            .map(|(&f, &d)| (f, d * Decibels(weights.gain_db_at(f)).to_amplitude()))
+            .unzip();
+        flatness(&FrequencyResponse { freqs, response })
+            .ok()
+            .map(|(rms, _)| rms)
     }
 
     /// Forgets what neither the delay check nor the adapter will read again.
@@ -546,15 +561,6 @@ fn bound<T: Copy>(history: &mut History<T>, cap: usize) {
     if excess > 0 {
         history.trim_to(history.start + excess as u64);
     }
-}
-
-/// The drive's RMS over the window starting at `from`.
-fn window_rms(drive: &History<DriveFrame>, from: u64) -> f64 {
-    let sum: f64 = (0..WINDOW as u64)
-        .filter_map(|k| drive.get(from + k))
-        .map(|f| f64::from(f.drive).powi(2))
-        .sum();
-    (sum / WINDOW as f64).sqrt()
 }
 
 #[cfg(test)]

@@ -15,8 +15,9 @@ use crate::force::gait::{self, GaitConfig, nominal_step};
 use crate::material::builtin::builtin;
 use crate::signal::Sos;
 use crate::signal::noise::SplitMix64;
+use crate::sim::SimulatedUser;
 use crate::synthesis::VoiceConfig;
-use crate::units::{Band, Hz};
+use crate::units::Band;
 
 const RATE: SampleRate = SampleRate(48_000);
 
@@ -24,8 +25,7 @@ const RATE: SampleRate = SampleRate(48_000);
 /// accelerometer on the skin (the device itself is a wire here, as in the JACK test).
 pub(crate) fn leg() -> Sos {
     let limb = LimbModel::new(LimbParams::TABLE1_MEAN, DEFAULT_G2, 1.0).unwrap();
-    let prewarp = Hz(limb.params.skin_resonance().0.min(0.4 * RATE.hz()));
-    limb.sos(RATE, prewarp).unwrap()
+    SimulatedUser::limb_sections(&limb, RATE).unwrap()
 }
 
 /// The deviation from flat over 40-1024 Hz (the equalizer's band) of `weights` in front
