@@ -42,6 +42,8 @@ enum Command {
     Render(commands::render::RenderArgs),
     /// Run the live engine: force from a replay, serial port or OSC, to a device.
     Run(commands::run::RunArgs),
+    /// `run` with a control panel in a web page: live meters, materials, gain, stop, fits.
+    Panel(commands::panel::PanelArgs),
     /// A library as a C99 header for firmware: float, Q15/Q31 sections (checked), the loop.
     Export(commands::export::ExportArgs),
     /// A walk across every built-in material: walk.wav, its spectrogram, the fit table.
@@ -67,6 +69,7 @@ fn main() -> ExitCode {
         Command::EqTable(cmd) => commands::eq_table::run(&cmd),
         Command::Render(args) => commands::render::run(&args),
         Command::Run(args) => commands::run::run(&args),
+        Command::Panel(args) => commands::panel::run(&args),
         Command::Demo(args) => commands::demo::run(&args),
         Command::Export(args) => commands::export::run(&args),
     };

@@ -60,7 +60,7 @@ pub struct RecordingFigure {
 }
 
 /// The leave-one-recording-out figures of a [`FitReportEntry`].
-#[derive(Debug, Serialize)]
+#[derive(Debug, Clone, Serialize)]
 pub struct LeaveOneOutReport {
     pub held_out: Vec<HeldOutReport>,
     pub mean_lsd_db: f64,
@@ -68,7 +68,7 @@ pub struct LeaveOneOutReport {
 }
 
 /// One recording left out.
-#[derive(Debug, Serialize)]
+#[derive(Debug, Clone, Serialize)]
 pub struct HeldOutReport {
     pub file: String,
     pub strikes: usize,

@@ -101,6 +101,8 @@ fn rendering_never_allocates_or_frees() {
             channels: 4,
             drive: drive.parse().unwrap(),
             gain: Decibels(30.0), // so that the limiter works too
+            // Room for materials added while it plays (a panel's fits).
+            spare_slots: 2,
             compensation: if compensated {
                 compensation.clone()
             } else {
@@ -115,6 +117,10 @@ fn rendering_never_allocates_or_frees() {
         let (mut ctl, mut eng) = engine::build(&config, bank, &slots).unwrap();
         let mut out = vec![0.0f32; 512 * 6];
         let mut replacement = Some(replacement);
+        let mut added = vec![
+            PreparedMaterial::prepare(builtin().get("sand").unwrap(), rate, &voice).unwrap(),
+            PreparedMaterial::prepare(builtin().get("wood").unwrap(), rate, &voice).unwrap(),
+        ];
         let mut frame = 0u64;
         for block in 0..400u64 {
             // The control side, outside the watched region: readings at 500 Hz, with a
@@ -163,6 +169,31 @@ fn rendering_never_allocates_or_frees() {
                 && let Some(m) = replacement.take()
             {
                 ctl.replace_material(3, m).unwrap();
+            }
+            // Materials added into the spare slots and played at once; a third is
+            // refused on the control side (the bank is full), never on the audio thread.
+            if (block == 120 || block == 160)
+                && let Some(m) = added.pop()
+            {
+                let slot = ctl.add_material(m).unwrap();
+                assert_eq!(usize::from(slot), 11 + (block as usize - 120) / 40);
+                ctl.send(TimedEvent::now(Event::Material { channel: 0, slot }))
+                    .unwrap();
+            }
+            if block == 170 {
+                let m =
+                    PreparedMaterial::prepare(builtin().get("ice").unwrap(), rate, &voice).unwrap();
+                assert!(matches!(
+                    ctl.add_material(m),
+                    Err(engine::EngineError::BankFull { capacity: 13 })
+                ));
+            }
+            // Trims on two channels, one of them non-finite (refused on the control side),
+            // one past 0 dB (clamped).
+            if block % 60 == 13 {
+                ctl.set_trim(2, Decibels(-(block as f64) / 20.0)).unwrap();
+                ctl.set_trim(1, Decibels(6.0)).unwrap();
+                assert!(ctl.set_trim(1, Decibels(f64::NAN)).is_err());
             }
             if block == 390 {
                 ctl.stop().unwrap();

@@ -5,6 +5,7 @@ pub mod eq_table;
 pub mod export;
 pub mod fit;
 pub mod library;
+pub mod panel;
 pub mod render;
 pub mod run;
 pub mod synth;

@@ -96,6 +96,24 @@ pub struct Setup {
     pub origin: String,
     pub bank: MaterialBank,
     pub config: EngineConfig,
+    /// How the bank's materials were prepared, and the nominal step their force drives
+    /// were normalised with: a material added later is prepared the same way.
+    #[cfg_attr(
+        not(feature = "panel"),
+        expect(
+            dead_code,
+            reason = "the panel prepares its bank and its fits with them"
+        )
+    )]
+    pub voice: VoiceConfig,
+    #[cfg_attr(
+        not(feature = "panel"),
+        expect(
+            dead_code,
+            reason = "the panel prepares its bank and its fits with them"
+        )
+    )]
+    pub nominal_step: Vec<f64>,
 }
 
 impl SynthArgs {
@@ -147,14 +165,9 @@ impl SynthArgs {
             model: self.model,
             ..VoiceConfig::default()
         };
-        let bank = MaterialBank::prepare(
-            &library,
-            rate,
-            &voice,
-            &nominal_step(self.weight_kg, 1.8, rate.hz()),
-            weight,
-        )
-        .with_context(|| format!("preparing the materials of {origin}"))?;
+        let step = nominal_step(self.weight_kg, 1.8, rate.hz());
+        let bank = MaterialBank::prepare(&library, rate, &voice, &step, weight)
+            .with_context(|| format!("preparing the materials of {origin}"))?;
         let mut config = EngineConfig {
             rate,
             channels,
@@ -227,6 +240,8 @@ impl SynthArgs {
             origin,
             bank,
             config,
+            voice,
+            nominal_step: step,
         })
     }
 }

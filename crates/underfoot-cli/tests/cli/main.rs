@@ -15,6 +15,10 @@ mod files;
 mod fit_cmd;
 mod library_cmd;
 mod live_offline;
+#[cfg(feature = "panel")]
+mod panel_browser;
+#[cfg(feature = "panel")]
+mod panel_cmd;
 mod readme;
 mod render_cmd;
 mod run_cmd;

@@ -6,7 +6,9 @@
 //! `../shared` beside it, through `bash` with the binary under test first on `PATH`: what
 //! the quick start leaves. A command under a comment that says `[hardware]` needs a sensor
 //! board or a sound card and is skipped; the quick start's own lines are this test itself
-//! (its `cargo run -p underfoot-cli -- demo` runs as `underfoot demo`). Any other line that is
+//! (its `cargo run -p underfoot-cli -- demo` runs as `underfoot demo`); `underfoot panel`
+//! serves until Ctrl-C and is skipped with the line that installs it (the panel's tests
+//! run it, in CI with the `panel` feature). Any other line that is
 //! not an `underfoot` command fails the test: a new kind of line needs a rule here.
 
 use std::path::{Path, PathBuf};
@@ -98,6 +100,16 @@ fn action(line: &Line) -> Result<Action, String> {
     }
     if text.starts_with("cargo test --workspace") {
         return Ok(Action::Skip("the test command that runs this test"));
+    }
+    if text == "cargo install --path crates/underfoot-cli --features panel" {
+        return Ok(Action::Skip(
+            "installs the panel's build; tests/cli/panel_*.rs test it",
+        ));
+    }
+    if text.starts_with("underfoot panel ") {
+        return Ok(Action::Skip(
+            "serves until Ctrl-C; tests/cli/panel_*.rs run it (CI, with the panel feature)",
+        ));
     }
     if text == r#"export PATH="$PWD/target/debug:$PATH""# {
         return Ok(Action::Skip("this test puts the binary under test on PATH"));

@@ -11,6 +11,7 @@ use crate::units::SampleRate;
 use super::channel::Channel;
 use super::clock::SensorClock;
 use super::controller::{Command, Retired};
+use super::telemetry::BlockLevels;
 use super::{Event, OutputStage, Telemetry};
 
 /// The audio half. Move it into the audio callback.
@@ -126,6 +127,25 @@ impl Engine {
                         self.retire(Retired::Material(old));
                     }
                 }
+                Command::Add(material) => {
+                    // The bank's spare capacity was reserved at build, and the controller
+                    // sends no more than it holds: a push here never reallocates. A
+                    // material beyond it (which the controller does not send) goes back.
+                    if self.bank.len() < self.bank.capacity() {
+                        self.bank.push(material);
+                    } else {
+                        self.retire(Retired::Material(material));
+                    }
+                }
+                Command::Trim(channel, amplitude) => {
+                    let applied = self
+                        .stages
+                        .get_mut(usize::from(channel))
+                        .is_some_and(|stage| stage.set_trim(amplitude));
+                    if !applied {
+                        self.telemetry.count_rejected();
+                    }
+                }
                 Command::Equalize(channel, gains) => {
                     let applied = self
                         .stages
@@ -179,7 +199,10 @@ impl Engine {
                 }
             }
             Event::Material { slot, .. } => match self.bank.get(usize::from(slot)) {
-                Some(m) => channel.set_material(slot, m),
+                Some(m) => {
+                    channel.set_material(slot, m);
+                    self.telemetry.meter_slot(index, slot);
+                }
                 None => self.telemetry.count_rejected(),
             },
         }
@@ -207,16 +230,22 @@ impl Engine {
             let mut start = 0;
             let mut channel_report = LimiterReport::default();
             let mut channel_peak = 0.0f32;
+            let mut energy = 0.0f64;
+            let mut drive = 0.0f32;
             while start < n {
                 let len = (n - start).min(channel_buf.len());
                 let buf = &mut channel_buf[..len];
                 resets += channel.render(buf);
+                drive = drive.max(channel.drive_peak());
                 resets += stage.process(buf, &fade[start..start + len], &mut channel_report);
                 if c < device_channels {
+                    let mut sub_energy = 0.0f32;
                     for (i, v) in buf.iter().enumerate() {
                         channel_peak = channel_peak.max(v.abs());
+                        sub_energy += v * v;
                         out[(start + i) * device_channels + c] = *v;
                     }
+                    energy += f64::from(sub_energy);
                 }
                 start += len;
             }
@@ -226,8 +255,19 @@ impl Engine {
                 report.limited = report.limited.saturating_add(channel_report.limited);
                 report.non_finite = report.non_finite.saturating_add(channel_report.non_finite);
                 self.peak = self.peak.max(channel_peak);
-                self.telemetry
-                    .meter_block(c, channel_peak, channel_report.limited);
+                self.telemetry.meter_block(
+                    c,
+                    &BlockLevels {
+                        peak: channel_peak,
+                        energy,
+                        samples: n as u32,
+                        drive,
+                        min_gain: stage.take_min_gain(),
+                        limited: channel_report.limited,
+                        live: stage.is_live(),
+                        trim: stage.trim_target(),
+                    },
+                );
             }
         }
         self.frame += n as u64;

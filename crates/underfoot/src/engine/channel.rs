@@ -35,6 +35,8 @@ pub(super) struct Channel {
     pending_impulse: f32,
     previous_total: f32,
     last_drive: f32,
+    /// The largest absolute drive sample of the last block rendered, for the meter.
+    drive_peak: f32,
     drive_buf: Vec<f32>,
     /// The loading rate `v_F` (N/s) of the block, for physical models.
     loading_buf: Vec<f32>,
@@ -68,11 +70,26 @@ impl Channel {
             pending_impulse: 0.0,
             previous_total: 0.0,
             last_drive: 0.0,
+            drive_peak: 0.0,
             drive_buf: vec![0.0; config.max_block],
             loading_buf: vec![0.0; config.max_block],
             out_a: vec![0.0; config.max_block],
             out_b: vec![0.0; config.max_block],
         }
+    }
+
+    /// The largest absolute drive sample of the last block rendered.
+    pub(super) fn drive_peak(&self) -> f32 {
+        if self.drive_peak.is_finite() {
+            self.drive_peak
+        } else {
+            f32::MAX
+        }
+    }
+
+    /// Its index in the engine.
+    pub(super) fn index(&self) -> usize {
+        self.index
     }
 
     /// Switches to a material; the old voice fades out over the crossfade time.
@@ -113,7 +130,7 @@ impl Channel {
             return false;
         }
         self.conditioner.push(reading);
-        telemetry.meter_force(self.index, reading.total());
+        telemetry.meter_force(self.index, reading);
         let time = reading.time().map_or_else(
             || ReadingTime::Arrival(Seconds(frame as f64 / self.rate_hz)),
             ReadingTime::Sensor,
@@ -195,6 +212,8 @@ impl Channel {
             *first += self.pending_impulse;
             self.pending_impulse = 0.0;
         }
+        // `max` ignores a NaN, so the meter's bits stay those of a finite value.
+        self.drive_peak = drive.iter().fold(0.0f32, |m, v| m.max(v.abs()));
         let mut resets = 0;
         if self.slot.is_none() {
             out[..n].fill(0.0);

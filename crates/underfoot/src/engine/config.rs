@@ -49,6 +49,9 @@ pub struct EngineConfig {
     pub fade: Seconds,
     /// Capacity of the event queue (default 8192).
     pub queue_capacity: usize,
+    /// Bank slots reserved beyond the bank's materials for materials added while the
+    /// engine runs ([`Controller::add_material`](super::Controller::add_material)); default 0.
+    pub spare_slots: usize,
     /// Device equalizer and limb compensation, applied to every channel before its
     /// limiter (default: none).
     pub compensation: Compensation,
@@ -75,6 +78,7 @@ impl Default for EngineConfig {
             crossfade: Seconds(0.02),
             fade: Seconds(0.01),
             queue_capacity: 8192,
+            spare_slots: 0,
             compensation: Compensation::default(),
         }
     }
@@ -101,6 +105,12 @@ pub enum EngineError {
     /// The compensation cannot run at this engine's settings.
     #[error("compensation: {0}")]
     Compensation(#[from] CompensationError),
+    /// Every spare slot of the bank is taken.
+    #[error("the engine's bank is full ({capacity} slots): restart to add more materials")]
+    BankFull {
+        /// Slots in all.
+        capacity: usize,
+    },
     /// The event queue is full: the audio thread is not running or not keeping up.
     #[error("the engine's event queue is full (is the audio device running?)")]
     QueueFull,

@@ -4,13 +4,17 @@
 use std::sync::Arc;
 
 use crate::synthesis::PreparedMaterial;
-use crate::units::SampleRate;
+use crate::units::{Decibels, SampleRate};
 
 use super::{EngineError, Telemetry, TelemetrySnapshot, TimedEvent};
 
 pub(super) enum Command {
     Event(TimedEvent),
     Replace(u16, Box<PreparedMaterial>),
+    /// A new material into one of the bank's spare slots.
+    Add(Box<PreparedMaterial>),
+    /// A channel's trim below the configured gain, as an amplitude.
+    Trim(u16, f32),
     /// New equalizer weights for a channel (dB per bin, the shape it was built with).
     Equalize(u16, Box<[f64]>),
     Stop,
@@ -28,6 +32,9 @@ pub struct Controller {
     pub(super) retired: rtrb::Consumer<Retired>,
     pub(super) telemetry: Arc<Telemetry>,
     pub(super) names: Vec<String>,
+    /// Slots the bank can hold in all: its materials and the spare ones reserved at
+    /// build for [`add_material`](Controller::add_material).
+    pub(super) capacity: usize,
     pub(super) rate: SampleRate,
 }
 
@@ -63,6 +70,50 @@ impl Controller {
         self.names[usize::from(slot)] = material.name.clone();
         self.commands
             .push(Command::Replace(slot, Box::new(material)))
+            .map_err(|_| EngineError::QueueFull)
+    }
+
+    /// Adds a material to the bank, in one of the spare slots reserved at build
+    /// ([`EngineConfig::spare_slots`](super::EngineConfig::spare_slots)), and returns its slot; an
+    /// [`Event::Material`](super::Event::Material) for that slot then plays it. The
+    /// material is prepared by the caller, off the audio thread; the engine only stores
+    /// its pointer.
+    ///
+    /// # Errors
+    /// [`EngineError::BankFull`] when every spare slot is taken, or
+    /// [`EngineError::QueueFull`].
+    pub fn add_material(&mut self, material: PreparedMaterial) -> Result<u16, EngineError> {
+        if self.names.len() >= self.capacity {
+            return Err(EngineError::BankFull {
+                capacity: self.capacity,
+            });
+        }
+        let slot = self.names.len() as u16;
+        let name = material.name.clone();
+        self.commands
+            .push(Command::Add(Box::new(material)))
+            .map_err(|_| EngineError::QueueFull)?;
+        self.names.push(name);
+        Ok(slot)
+    }
+
+    /// Sets channel `channel`'s trim: `gain` below the configured output gain, clamped to
+    /// -120 to 0 dB (the trim can only lower the output; the limiter's ceiling is not
+    /// touched), reached smoothly over about 10 ms from the engine's next block.
+    ///
+    /// # Errors
+    /// [`EngineError::InvalidConfig`] for a channel beyond the engine or a non-finite
+    /// gain, or [`EngineError::QueueFull`].
+    pub fn set_trim(&mut self, channel: u16, gain: Decibels) -> Result<(), EngineError> {
+        if usize::from(channel) >= self.telemetry.channels() || !gain.0.is_finite() {
+            return Err(EngineError::InvalidConfig(format!(
+                "trim {gain} on channel {channel}: need a finite gain and a channel below {}",
+                self.telemetry.channels()
+            )));
+        }
+        let amplitude = Decibels(gain.0.clamp(-120.0, 0.0)).to_amplitude() as f32;
+        self.commands
+            .push(Command::Trim(channel, amplitude))
             .map_err(|_| EngineError::QueueFull)
     }
 

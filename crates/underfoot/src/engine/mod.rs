@@ -12,7 +12,17 @@
 //!
 //! Every material of the bank is prepared before the engine starts; changing a channel's
 //! material is a slot index, and the voice copies the coefficients into its own fixed
-//! arrays. A replaced material goes back over the retire queue.
+//! arrays. A replaced material goes back over the retire queue. A material prepared while
+//! the engine runs (a fit made from a control panel) goes into one of the spare slots
+//! reserved at build ([`EngineConfig::spare_slots`]): the audio thread pushes its pointer
+//! into room that is already there. A channel's trim ([`Controller::set_trim`]) lowers
+//! its output below the configured gain, smoothly, before the limiter; it can never raise
+//! it.
+//!
+//! The [`Telemetry`] has a meter per channel that the audio thread writes once per block
+//! with relaxed atomics and a reader takes at its own pace: the last reading's force per
+//! sensor, strikes, the output's peak and its RMS over exactly the reader's interval, the
+//! drive's peak, the limiter's smallest gain, the watchdog's state, the slot and the trim.
 //!
 //! # Timing
 //!
@@ -146,13 +156,26 @@ pub fn build(
     // drop a retired material on the audio thread.
     let (retire_tx, retire_rx) = rtrb::RingBuffer::new(config.queue_capacity);
     let telemetry = Arc::new(Telemetry::new(config.channels));
-    let bank: Vec<Box<PreparedMaterial>> = bank.materials.into_iter().map(Box::new).collect();
+    if config.spare_slots > usize::from(u16::MAX) - bank.materials.len() {
+        return Err(EngineError::InvalidConfig(format!(
+            "{} spare slots beyond {} materials: at most 65535 slots in all",
+            config.spare_slots,
+            bank.materials.len()
+        )));
+    }
+    let capacity = bank.materials.len() + config.spare_slots;
+    // Reserved now, so that adding a material on the audio thread is a push into room
+    // that is already there.
+    let mut slots: Vec<Box<PreparedMaterial>> = Vec::with_capacity(capacity);
+    slots.extend(bank.materials.into_iter().map(Box::new));
+    let bank = slots;
     let prototype = bank.iter().find_map(|m| m.ground.as_ref());
     let mut channels: Vec<Channel> = (0..config.channels)
         .map(|c| Channel::new(config, c, prototype))
         .collect();
     for (ch, slot) in channels.iter_mut().zip(initial) {
         ch.set_material(*slot, &bank[usize::from(*slot)]);
+        telemetry.meter_slot(ch.index(), *slot);
     }
     let stages = (0..config.channels)
         .map(|_| {
@@ -195,6 +218,7 @@ pub fn build(
         retired: retire_rx,
         telemetry,
         names,
+        capacity,
         rate: config.rate,
     };
     Ok((controller, engine))

@@ -19,7 +19,18 @@ pub struct OutputStage {
     compensation: Option<CompensationChain>,
     watchdog: Watchdog,
     limiter: Limiter,
+    /// The trim below the configured gain (an amplitude, 0 to 1), where it is heading,
+    /// and the per-sample step of the one-pole smoothing that takes it there (a trim
+    /// that jumped would click on the skin).
+    trim: f32,
+    trim_target: f32,
+    trim_step: f32,
+    /// The limiter's smallest gain since [`take_min_gain`](Self::take_min_gain).
+    min_gain: f32,
 }
+
+/// Time constant of the trim's smoothing.
+const TRIM_SMOOTHING: Seconds = Seconds(0.01);
 
 impl OutputStage {
     /// A stage with `compensation` (or none), a watchdog that starts silent (no input
@@ -36,7 +47,40 @@ impl OutputStage {
             compensation,
             watchdog: Watchdog::new(watchdog, rate),
             limiter: Limiter::new(ceiling, release, rate),
+            trim: 1.0,
+            trim_target: 1.0,
+            trim_step: (1.0 - (-1.0 / (TRIM_SMOOTHING.0 * rate.hz())).exp()) as f32,
+            min_gain: 1.0,
         }
+    }
+
+    /// Sets the trim, an amplitude below the configured gain: clamped to 0 to 1 (so
+    /// it can only lower the output; the limiter's ceiling stays where it was set), a
+    /// non-finite value refused (`false`). Reached smoothly over about 10 ms.
+    pub fn set_trim(&mut self, amplitude: f32) -> bool {
+        if !amplitude.is_finite() {
+            return false;
+        }
+        self.trim_target = amplitude.clamp(0.0, 1.0);
+        true
+    }
+
+    /// The trim last set, as an amplitude: where the smoothing is heading.
+    #[must_use]
+    pub fn trim_target(&self) -> f32 {
+        self.trim_target
+    }
+
+    /// The limiter's smallest gain since the previous call (1.0: no reduction), and
+    /// resets it.
+    pub fn take_min_gain(&mut self) -> f32 {
+        std::mem::replace(&mut self.min_gain, 1.0)
+    }
+
+    /// Whether the watchdog lets the channel play.
+    #[must_use]
+    pub fn is_live(&self) -> bool {
+        !self.watchdog.is_silent()
     }
 
     /// Retunes the equalizer ([`EqualizerFilter::set_weights`]); `false` (nothing changed)
@@ -84,11 +128,18 @@ impl OutputStage {
         };
         for (y, g) in buf.iter_mut().zip(gain) {
             let w = self.watchdog.tick();
+            self.trim += (self.trim_target - self.trim) * self.trim_step;
             // A silenced channel is exactly zero, whatever the compensation still holds
             // (even a non-finite value: there is nothing to count, nothing is played).
-            let limited = self
-                .limiter
-                .tick(if w == 0.0 { 0.0 } else { *y * w * g }, report);
+            let limited = self.limiter.tick(
+                if w == 0.0 {
+                    0.0
+                } else {
+                    *y * w * g * self.trim
+                },
+                report,
+            );
+            self.min_gain = self.min_gain.min(self.limiter.gain());
             *y = limited;
         }
         resets

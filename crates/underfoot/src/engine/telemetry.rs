@@ -2,6 +2,7 @@
 
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 
+use crate::force::{MAX_SENSORS, SensorReading};
 use crate::units::{Newtons, Seconds};
 
 use super::ClockAnchor;
@@ -30,29 +31,139 @@ pub struct Telemetry {
 
 /// One channel's live levels, published by the audio thread: relaxed atomics, written
 /// once per reading or per block, never a lock.
-#[derive(Debug, Default)]
+///
+/// Peaks and the limiter's smallest gain are kept as `f32` bits: for non-negative floats
+/// the bit patterns order as the values do, so `fetch_max`/`fetch_min` on them are the
+/// maximum/minimum of the values. The output's energy is a fixed-point sum
+/// ([`ENERGY_SCALE`]) that [`Telemetry::take_channel`] swaps out with the number of
+/// samples it covers, so the reader gets the RMS over exactly its own interval.
+#[derive(Debug)]
 pub(super) struct ChannelMeter {
     /// The last total force taken, in newtons (`f32` bits).
     force_bits: AtomicU32,
+    /// Each sensor of the last reading, in newtons (`f32` bits), and how many there were.
+    sensor_bits: [AtomicU32; MAX_SENSORS],
+    sensors: AtomicU32,
     strikes: AtomicU64,
-    /// The largest absolute sample since the last [`Telemetry::take_channel`] (`f32`
-    /// bits: for non-negative floats the bit patterns order as the values do, so
-    /// `fetch_max` on them is a maximum of the values).
+    /// The largest absolute output sample since the last take.
     peak_bits: AtomicU32,
+    /// The largest absolute drive sample (the filter's excitation) since the last take.
+    drive_bits: AtomicU32,
+    /// Sum of squared output samples since the last take, times [`ENERGY_SCALE`].
+    energy: AtomicU64,
+    /// Samples that sum covers.
+    samples: AtomicU64,
+    /// The limiter's smallest gain since the last take (1.0: it did nothing).
+    min_gain_bits: AtomicU32,
     limited: AtomicU64,
+    /// Whether the watchdog lets the channel play (input is arriving).
+    live: AtomicBool,
+    /// The bank slot the channel plays, [`NO_SLOT`] before its first.
+    slot: AtomicU32,
+    /// The channel's trim (the gain below the configured one), as an amplitude.
+    trim_bits: AtomicU32,
+}
+
+/// Fixed-point scale of a meter's energy: a full-scale sample adds 2^32, so a u64 holds
+/// 2^32 of them (a day at 48 kHz of a channel at full scale that nobody reads; the sum
+/// wraps rather than panics if it ever does), and a sample at -100 dBFS still adds 0.4.
+const ENERGY_SCALE: f64 = 4_294_967_296.0;
+
+/// A meter's slot before the channel has a material.
+const NO_SLOT: u32 = u32::MAX;
+
+impl Default for ChannelMeter {
+    fn default() -> Self {
+        Self {
+            force_bits: AtomicU32::new(0),
+            sensor_bits: std::array::from_fn(|_| AtomicU32::new(0)),
+            sensors: AtomicU32::new(0),
+            strikes: AtomicU64::new(0),
+            peak_bits: AtomicU32::new(0),
+            drive_bits: AtomicU32::new(0),
+            energy: AtomicU64::new(0),
+            samples: AtomicU64::new(0),
+            min_gain_bits: AtomicU32::new(1.0f32.to_bits()),
+            limited: AtomicU64::new(0),
+            live: AtomicBool::new(false),
+            slot: AtomicU32::new(NO_SLOT),
+            trim_bits: AtomicU32::new(1.0f32.to_bits()),
+        }
+    }
+}
+
+/// What the audio thread measured of one channel over one block, for its meter.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct BlockLevels {
+    /// Largest absolute output sample.
+    pub peak: f32,
+    /// Sum of the squared output samples.
+    pub energy: f64,
+    /// Samples in the block.
+    pub samples: u32,
+    /// Largest absolute drive sample.
+    pub drive: f32,
+    /// The limiter's smallest gain.
+    pub min_gain: f32,
+    /// Samples the limiter reduced.
+    pub limited: u32,
+    /// Whether the watchdog let the channel play at the block's end.
+    pub live: bool,
+    /// The channel's trim, as an amplitude.
+    pub trim: f32,
 }
 
 /// One channel's levels, as [`Telemetry::take_channel`] reads them.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ChannelLevels {
     /// The last total force the channel took (sum of its sensors), in newtons.
     pub force: f32,
+    /// Each sensor of the last reading, in newtons; the first
+    /// [`sensor_count`](Self::sensor_count) are meaningful.
+    pub sensors: [f32; MAX_SENSORS],
+    /// How many sensors the last reading had (0 before any reading).
+    pub sensor_count: u8,
     /// Heel strikes on this channel so far.
     pub strikes: u64,
     /// The largest absolute output sample since the previous take (full scale 1.0).
     pub peak: f32,
+    /// The RMS of the output since the previous take (full scale 1.0; 0 if no sample was
+    /// rendered in between).
+    pub rms: f32,
+    /// The largest absolute drive sample (the filter's excitation, before the output
+    /// stage) since the previous take.
+    pub drive: f32,
+    /// The limiter's smallest gain since the previous take (1.0: no reduction).
+    pub limiter_gain: f32,
     /// Samples of this channel the limiter reduced so far.
     pub limited: u64,
+    /// Whether the watchdog lets the channel play (input is arriving); `false` once it
+    /// has faded the channel to silence.
+    pub live: bool,
+    /// The bank slot the channel plays, `None` before its first material.
+    pub slot: Option<u16>,
+    /// The channel's trim below the configured gain ([`Controller::set_trim`](super::Controller::set_trim)), as an
+    /// amplitude (1.0: none).
+    pub trim: f32,
+}
+
+impl Default for ChannelLevels {
+    fn default() -> Self {
+        Self {
+            force: 0.0,
+            sensors: [0.0; MAX_SENSORS],
+            sensor_count: 0,
+            strikes: 0,
+            peak: 0.0,
+            rms: 0.0,
+            drive: 0.0,
+            limiter_gain: 1.0,
+            limited: 0,
+            live: false,
+            slot: None,
+            trim: 1.0,
+        }
+    }
 }
 
 impl Telemetry {
@@ -72,11 +183,41 @@ impl Telemetry {
     #[must_use]
     pub fn take_channel(&self, c: usize) -> Option<ChannelLevels> {
         let m = self.channels.get(c)?;
+        let sensor_count = m.sensors.load(Ordering::Relaxed).min(MAX_SENSORS as u32) as u8;
+        let mut sensors = [0.0; MAX_SENSORS];
+        for (v, bits) in sensors
+            .iter_mut()
+            .zip(&m.sensor_bits)
+            .take(usize::from(sensor_count))
+        {
+            *v = f32::from_bits(bits.load(Ordering::Relaxed));
+        }
+        // The energy first: a block published between the two swaps adds its samples
+        // to the next interval's count and its energy to this one's, which errs by one
+        // block's worth at most and never divides by zero below.
+        let energy = m.energy.swap(0, Ordering::Relaxed) as f64 / ENERGY_SCALE;
+        let samples = m.samples.swap(0, Ordering::Relaxed);
+        let rms = if samples == 0 {
+            0.0
+        } else {
+            (energy / samples as f64).sqrt() as f32
+        };
         Some(ChannelLevels {
             force: f32::from_bits(m.force_bits.load(Ordering::Relaxed)),
+            sensors,
+            sensor_count,
             strikes: m.strikes.load(Ordering::Relaxed),
             peak: f32::from_bits(m.peak_bits.swap(0, Ordering::Relaxed)),
+            rms,
+            drive: f32::from_bits(m.drive_bits.swap(0, Ordering::Relaxed)),
+            limiter_gain: f32::from_bits(m.min_gain_bits.swap(1.0f32.to_bits(), Ordering::Relaxed)),
             limited: m.limited.load(Ordering::Relaxed),
+            live: m.live.load(Ordering::Relaxed),
+            slot: match m.slot.load(Ordering::Relaxed) {
+                NO_SLOT => None,
+                s => u16::try_from(s).ok(),
+            },
+            trim: f32::from_bits(m.trim_bits.load(Ordering::Relaxed)),
         })
     }
 
@@ -97,17 +238,43 @@ impl Telemetry {
         ))))
     }
 
-    pub(super) fn meter_force(&self, c: usize, newtons: f32) {
+    pub(super) fn meter_force(&self, c: usize, reading: &SensorReading) {
         if let Some(m) = self.channels.get(c) {
-            m.force_bits.store(newtons.to_bits(), Ordering::Relaxed);
+            m.force_bits
+                .store(reading.total().to_bits(), Ordering::Relaxed);
+            let values = reading.as_slice();
+            for (bits, v) in m.sensor_bits.iter().zip(values) {
+                bits.store(v.to_bits(), Ordering::Relaxed);
+            }
+            m.sensors.store(values.len() as u32, Ordering::Relaxed);
         }
     }
 
-    pub(super) fn meter_block(&self, c: usize, peak: f32, limited: u32) {
+    pub(super) fn meter_slot(&self, c: usize, slot: u16) {
         if let Some(m) = self.channels.get(c) {
-            // Non-negative (an absolute value) and finite (after the limiter).
-            m.peak_bits.fetch_max(peak.to_bits(), Ordering::Relaxed);
-            m.limited.fetch_add(u64::from(limited), Ordering::Relaxed);
+            m.slot.store(u32::from(slot), Ordering::Relaxed);
+        }
+    }
+
+    pub(super) fn meter_block(&self, c: usize, block: &BlockLevels) {
+        if let Some(m) = self.channels.get(c) {
+            // Peaks are non-negative (absolute values) and finite (after the limiter;
+            // the drive is checked by whoever measured it), so their bits order as
+            // their values.
+            m.peak_bits
+                .fetch_max(block.peak.to_bits(), Ordering::Relaxed);
+            m.drive_bits
+                .fetch_max(block.drive.to_bits(), Ordering::Relaxed);
+            m.min_gain_bits
+                .fetch_min(block.min_gain.to_bits(), Ordering::Relaxed);
+            m.energy
+                .fetch_add((block.energy * ENERGY_SCALE) as u64, Ordering::Relaxed);
+            m.samples
+                .fetch_add(u64::from(block.samples), Ordering::Relaxed);
+            m.limited
+                .fetch_add(u64::from(block.limited), Ordering::Relaxed);
+            m.live.store(block.live, Ordering::Relaxed);
+            m.trim_bits.store(block.trim.to_bits(), Ordering::Relaxed);
         }
     }
 }

@@ -47,6 +47,7 @@
 //! | `input.rs` | opening each kind of input: replay, walk, serial port, OSC, prosthetic interface |
 //! | `output.rs` | starting the output: an audio device, or the paced pseudo-device into a WAV file or nowhere |
 //! | `paced.rs` | [`PacedDevice`]: the engine at real-time pace without a sound card |
+//! | `remote.rs` | [`Remote`]: steering a running session from another thread (a control panel) |
 //! | `tests.rs` | sessions run end to end on short walks |
 //!
 //! # Example
@@ -94,12 +95,14 @@ pub mod adapt;
 mod input;
 mod output;
 pub mod paced;
+mod remote;
 mod session;
 #[cfg(test)]
 mod tests;
 
 pub use output::{OutputInfo, OutputReport};
 pub use paced::{PacedDevice, PacedReport};
+pub use remote::{Remote, RemoteCommand, RemoteError};
 pub use session::{
     InterfaceSummary, RunningSession, SerialSettings, Session, SessionConfig, SessionInput, Status,
     Summary,

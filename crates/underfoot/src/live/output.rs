@@ -2,7 +2,7 @@
 //! [paced](super::paced) pseudo-device into a WAV file or nowhere.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread::{self, JoinHandle};
 use std::time::Duration;
 
@@ -11,7 +11,7 @@ use crate::engine::Engine;
 use crate::io::IoError;
 use crate::io::spec::OutputSpec;
 use crate::io::wav::{WavFormat, WavSink};
-use crate::units::SampleRate;
+use crate::units::{SampleRate, Seconds};
 
 use super::LiveError;
 use super::adapt::DriveTap;
@@ -66,6 +66,10 @@ pub(super) struct PacedThread {
     /// `None` once joined.
     thread: Option<JoinHandle<Result<PacedReport, IoError>>>,
     stop: Arc<AtomicBool>,
+    /// The device's late wake-ups so far.
+    late: Arc<AtomicU64>,
+    /// One buffer's duration.
+    period: Seconds,
 }
 
 impl PacedThread {
@@ -142,6 +146,7 @@ impl Output {
         let block = buffer.unwrap_or(DEFAULT_BLOCK).clamp(16, 8192) as usize;
         let stop = Arc::new(AtomicBool::new(false));
         let device = PacedDevice::new(engine, sink, channels, rate, block);
+        let late = device.late_counter();
         let thread = {
             let stop = Arc::clone(&stop);
             thread::spawn(move || device.run(&stop))
@@ -156,6 +161,8 @@ impl Output {
             Output::Paced(PacedThread {
                 thread: Some(thread),
                 stop,
+                late,
+                period: Seconds(block as f64 / rate.hz()),
             }),
             info,
         ))
@@ -176,6 +183,20 @@ impl Output {
                 Some(cause) => Err(LiveError::OutputStopped(cause)),
                 None => Ok(()),
             },
+        }
+    }
+
+    /// Buffers late so far (an audio device's late callbacks, the paced device's late
+    /// wake-ups), and the output's latency: the device's measured latency when it
+    /// reports one, else one buffer.
+    pub(super) fn live(&self) -> (u64, Option<Seconds>) {
+        match self {
+            #[cfg(feature = "audio")]
+            Output::Audio(a) => {
+                let s = a.stats();
+                (s.late_callbacks, s.latency)
+            }
+            Output::Paced(p) => (p.late.load(Ordering::Relaxed), Some(p.period)),
         }
     }
 

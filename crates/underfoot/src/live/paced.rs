@@ -16,7 +16,8 @@
 //! recordings*).
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread;
 use std::time::{Duration, Instant};
 
@@ -36,6 +37,8 @@ pub struct PacedDevice {
     next: Instant,
     blocks: u64,
     late: u64,
+    /// The same count, for other threads to read while the device runs.
+    late_shared: Arc<AtomicU64>,
 }
 
 impl std::fmt::Debug for PacedDevice {
@@ -83,7 +86,19 @@ impl PacedDevice {
             next: Instant::now(),
             blocks: 0,
             late: 0,
+            late_shared: Arc::new(AtomicU64::new(0)),
         }
+    }
+
+    /// The count of late wake-ups, readable from another thread while the device runs.
+    #[must_use]
+    pub fn late_counter(&self) -> Arc<AtomicU64> {
+        Arc::clone(&self.late_shared)
+    }
+
+    fn count_late(&mut self) {
+        self.late += 1;
+        self.late_shared.fetch_add(1, Ordering::Relaxed);
     }
 
     /// Renders the next buffer into the sink, if any, and advances the clock by one
@@ -107,12 +122,12 @@ impl PacedDevice {
         if behind > Duration::from_secs(1) {
             // Stalled for over a second (a suspended process): start the clock afresh
             // rather than render a burst of catch-up buffers.
-            self.late += 1;
+            self.count_late();
             self.next = now;
         } else if behind > self.period {
             // Behind by more than a buffer: render the missed ones back to back, as a
             // device's clock would have played them, so frames keep wall-clock time.
-            self.late += 1;
+            self.count_late();
         }
         Ok(Duration::ZERO)
     }

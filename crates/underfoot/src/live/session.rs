@@ -22,6 +22,7 @@ use super::LiveError;
 use super::adapt::{AdaptLoop, AdaptSettings, AdaptStatus, DriveTap};
 use super::input::{self, Input};
 use super::output::{Output, OutputInfo, OutputReport, Start};
+use super::remote::{self, Remote, Request};
 
 /// How long a poll of the input waits for readings, and the loop's period when it has
 /// nothing to wait for.
@@ -246,8 +247,11 @@ impl Session {
             Input::Interface(host, sim) => Source::Interface(host, sim),
             Input::OscPending(_) => unreachable!("OSC is bound above"),
         };
+        let (remote, requests) = Remote::new();
         Ok(RunningSession {
             controller,
+            remote,
+            requests,
             output,
             info,
             adapt,
@@ -371,6 +375,8 @@ impl Source {
 /// A session whose output is playing: [`run`](Self::run) it.
 pub struct RunningSession {
     controller: Controller,
+    remote: Remote,
+    requests: std::sync::mpsc::Receiver<Request>,
     output: Output,
     info: OutputInfo,
     adapt: Option<RunningAdapt>,
@@ -439,6 +445,16 @@ pub struct Status {
     pub queue_full: u64,
     /// The adaptation's progress, if it runs.
     pub adapt: Option<AdaptStatus>,
+    /// The bank's material names, in slot order (materials added by a [`Remote`]
+    /// included).
+    pub materials: Vec<String>,
+    /// Output buffers late so far: an audio device's late callbacks, the paced
+    /// device's late wake-ups.
+    pub late_buffers: u64,
+    /// The output's latency: what the audio device measures (the time from a callback
+    /// to its buffer being heard), or one buffer for the paced device; `None` until the
+    /// device has said.
+    pub output_latency: Option<Seconds>,
 }
 
 impl RunningSession {
@@ -446,6 +462,13 @@ impl RunningSession {
     #[must_use]
     pub fn output(&self) -> &OutputInfo {
         &self.info
+    }
+
+    /// A handle to steer this session from another thread while it runs: switch
+    /// materials, trim a channel, add a material, stop ([`Remote`]).
+    #[must_use]
+    pub fn remote(&self) -> Remote {
+        self.remote.clone()
     }
 
     /// Polls the input and plays its events until the session ends: the input has ended
@@ -466,9 +489,9 @@ impl RunningSession {
     }
 
     /// [`run`](Self::run), giving `on_status` what the session is doing about every
-    /// `every` (at most as often as the loop polls, 50 times a second), from the thread
-    /// that runs it: the engine's levels are read from its atomics, so a status never
-    /// makes the audio thread wait.
+    /// `every`, from the thread that runs it: the engine's levels are read from its
+    /// atomics, so a status never makes the audio thread wait. The loop polls the input
+    /// at least every 20 ms, and every `every` when that is shorter (down to 5 ms).
     ///
     /// # Errors
     /// As [`run`](Self::run).
@@ -496,6 +519,10 @@ impl RunningSession {
         let mut lost: Option<LinkEvent> = None;
         let controller = &mut self.controller;
         let source = self.source.events();
+        // A caller that wants statuses more often than the input's poll period (a
+        // panel's meters) gets the loop at its pace: shorter waits on the input, never
+        // below 5 ms.
+        let poll = POLL.min(every.max(Duration::from_millis(5)));
         loop {
             if stop.load(Ordering::SeqCst) || deadline.is_some_and(|d| Instant::now() >= d) {
                 break;
@@ -510,17 +537,24 @@ impl RunningSession {
                 status.input = source.stats();
                 status.queue_full = queue_full;
                 status.adapt = self.adapt.as_ref().map(|a| a.adapt.status());
+                (status.late_buffers, status.output_latency) = self.output.live();
+                if status.materials.len() != controller.material_names().len() {
+                    status.materials = controller.material_names().to_vec();
+                }
                 on_status(&status);
+            }
+            if remote::serve(&self.requests, controller) {
+                break;
             }
             if let Some(t) = ended_at {
                 if Instant::now().duration_since(t) >= RING_OUT {
                     break;
                 }
-                thread::sleep(POLL);
+                thread::sleep(poll);
                 continue;
             }
             let polled = Instant::now();
-            let state = source.poll(POLL, &mut |event| {
+            let state = source.poll(poll, &mut |event| {
                 if controller.send(TimedEvent::now(event)).is_err() {
                     queue_full += 1;
                 }
@@ -540,7 +574,7 @@ impl RunningSession {
             } else if state != SourceState::Open {
                 // A source that is lost or ended has nothing to wait for and may return at
                 // once: pace the loop so that it cannot spin.
-                thread::sleep(POLL.saturating_sub(polled.elapsed()));
+                thread::sleep(poll.saturating_sub(polled.elapsed()));
             }
             if let Some(running) = &mut self.adapt {
                 running.adapt.poll(controller);

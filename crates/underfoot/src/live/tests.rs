@@ -170,3 +170,93 @@ fn an_audio_output_needs_the_feature() {
     let e = session.start(&engine, bank, &slots).unwrap_err();
     assert!(matches!(e, LiveError::NoAudio), "{e:?}");
 }
+
+/// A remote steers a running session from another thread: a material switch, a trim, a
+/// material added into a spare slot, then a stop that ends the session early. Each
+/// command is answered by the session's loop; after the end, a remote says so.
+#[test]
+#[ignore = "slow tier: a session paced in real time (about 1.5 s)"]
+fn a_remote_steers_a_running_session_from_another_thread() {
+    use crate::synthesis::PreparedMaterial;
+    use crate::units::Decibels;
+    let config = SessionConfig::new(walk(40), OutputSpec::Null);
+    let session = Session::open(&config).unwrap();
+    let (mut engine, bank, slots) = engine(1);
+    engine.spare_slots = 1;
+    let materials = bank.materials().len();
+    let sand = bank.slot("sand").unwrap();
+    let running = session.start(&engine, bank, &slots).unwrap();
+    let remote = running.remote();
+    let steering = std::thread::spawn(move || {
+        std::thread::sleep(std::time::Duration::from_millis(300));
+        assert_eq!(
+            remote
+                .send(RemoteCommand::Material {
+                    channel: 0,
+                    slot: sand
+                })
+                .unwrap(),
+            None
+        );
+        remote
+            .send(RemoteCommand::Trim {
+                channel: 0,
+                gain: Decibels(-6.0),
+            })
+            .unwrap();
+        let refused = remote
+            .send(RemoteCommand::Material {
+                channel: 3,
+                slot: sand,
+            })
+            .unwrap_err();
+        assert!(refused.to_string().contains("channel 3"), "{refused}");
+        let mut snow = PreparedMaterial::prepare(
+            builtin().get("snow").unwrap(),
+            RATE,
+            &VoiceConfig::default(),
+        )
+        .unwrap();
+        snow.normalise_drives(
+            &nominal_step(70.0, 1.8, RATE.hz()),
+            Newtons::weight_of(70.0),
+        );
+        let slot = remote.send(RemoteCommand::Add(Box::new(snow))).unwrap();
+        assert_eq!(slot, Some(materials as u16));
+        remote
+            .send(RemoteCommand::Material {
+                channel: 0,
+                slot: materials as u16,
+            })
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(300));
+        remote.send(RemoteCommand::Stop).unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(700));
+        // The session has ended and dropped its end of the channel.
+        assert!(matches!(
+            remote.send(RemoteCommand::Stop),
+            Err(RemoteError::Ended)
+        ));
+    });
+    let mut last = Status::default();
+    let summary = running
+        .run_with_status(
+            &AtomicBool::new(false),
+            |e| panic!("a walk has no link: {e}"),
+            std::time::Duration::ZERO,
+            |s| last.clone_from(s),
+        )
+        .unwrap();
+    steering.join().unwrap();
+    assert!(
+        summary.elapsed.as_secs_f64() < 3.0,
+        "stopped early: {:?}",
+        summary.elapsed
+    );
+    assert!(summary.telemetry.stopped);
+    assert_eq!(last.materials.len(), materials + 1);
+    assert_eq!(last.materials.last().unwrap(), "snow");
+    let ch = last.channels[0];
+    assert_eq!(ch.slot, Some(materials as u16));
+    assert!((ch.trim - 0.501).abs() < 0.001, "{ch:?}");
+}

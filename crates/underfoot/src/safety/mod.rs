@@ -103,6 +103,12 @@ impl Limiter {
         self.ceiling
     }
 
+    /// The gain applied to the last sample (1.0: no reduction).
+    #[must_use]
+    pub fn gain(&self) -> f32 {
+        self.gain
+    }
+
     /// Limits one sample.
     #[inline]
     pub fn tick(&mut self, x: f32, report: &mut LimiterReport) -> f32 {

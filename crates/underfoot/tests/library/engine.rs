@@ -462,3 +462,203 @@ fn the_limiter_holds_against_a_pathological_filter() {
     );
     assert!(ctl.telemetry().limited > 1000);
 }
+
+/// A walk rendered block by block with `each` called after every block: the
+/// controller, the engine and the block just rendered (one channel).
+fn play(
+    ctl: &mut Controller,
+    eng: &mut Engine,
+    events: &[TimedEvent],
+    block: usize,
+    frames: usize,
+    mut each: impl FnMut(&mut Controller, usize, &[f32]),
+) {
+    let mut out = vec![0.0f32; block];
+    let mut next = 0;
+    let mut done = 0;
+    while done < frames {
+        while next < events.len() && events[next].at.unwrap() < (done + block) as u64 {
+            ctl.send(events[next]).unwrap();
+            next += 1;
+        }
+        eng.process(&mut out, 1);
+        done += block;
+        each(ctl, done, &out);
+    }
+}
+
+/// The per-channel meters against the rendered output itself: the peak and RMS over each
+/// reader's interval, the limiter's smallest gain, the sensors, the slot, the watchdog.
+#[test]
+fn the_channel_meters_agree_with_the_output() {
+    let config = EngineConfig {
+        gain: underfoot::units::Decibels(24.0), // so that the limiter works
+        ..EngineConfig::default()
+    };
+    let (mut ctl, mut eng) = engine_with(&config, "gravel");
+    let gravel = bank().slot("gravel").unwrap();
+    let meters = ctl.telemetry_handle();
+    let events = walk_events(1, 1.6);
+    // Readings stop at 1.6 s; the walk's output is read every 4 blocks of 256 (~21 ms),
+    // as a panel would, and again after the watchdog has faded the channel out.
+    let mut since = Vec::new();
+    let mut reads = 0;
+    let mut loud = 0;
+    play(
+        &mut ctl,
+        &mut eng,
+        &events,
+        256,
+        48_000 * 2,
+        |_, done, out| {
+            since.extend_from_slice(out);
+            if done % 1024 != 0 {
+                return;
+            }
+            let m = meters.take_channel(0).unwrap();
+            let peak = since.iter().fold(0.0f32, |p, v| p.max(v.abs()));
+            let rms = (since.iter().map(|v| f64::from(*v).powi(2)).sum::<f64>()
+                / since.len() as f64)
+                .sqrt();
+            assert_eq!(m.peak, peak, "the peak over exactly the reader's interval");
+            assert!(
+                (f64::from(m.rms) - rms).abs() <= 1e-6 + 1e-4 * rms,
+                "rms {} against {rms} from the output",
+                m.rms
+            );
+            assert!(m.limiter_gain <= 1.0 && m.limiter_gain > 0.0);
+            if peak >= 0.5 * 0.99 {
+                // At the ceiling (-6 dB): the limiter reduced the gain in this interval.
+                assert!(m.limiter_gain < 0.9, "{m:?}");
+                loud += 1;
+            }
+            assert_eq!(m.slot, Some(gravel));
+            assert_eq!(m.trim, 1.0);
+            if done <= 48_000 {
+                assert!(m.live, "readings arrive: the watchdog lets it play");
+                assert_eq!(m.sensor_count, 2);
+                assert!((m.sensors[0] + m.sensors[1] - m.force).abs() < 1e-3);
+            }
+            if done >= 48_000 * 2 - 1024 {
+                assert!(!m.live, "readings stopped 0.4 s ago: faded out");
+                assert_eq!(m.peak, 0.0);
+            }
+            since.clear();
+            reads += 1;
+        },
+    );
+    assert!(
+        reads > 80 && loud > 0,
+        "{reads} reads, {loud} at the ceiling"
+    );
+    assert_eq!(meters.take_channel(0).unwrap().strikes, 4);
+}
+
+/// A trim lowers the output by what it says, smoothly; it can never raise it (a trim
+/// above 0 dB is clamped), and the limiter's ceiling does not move.
+#[test]
+fn a_trim_only_lowers_the_output() {
+    // Quiet enough that the limiter never acts: the ratio is the trim's alone.
+    let config = EngineConfig {
+        gain: underfoot::units::Decibels(-20.0),
+        ..EngineConfig::default()
+    };
+    let events = walk_events(1, 1.0);
+    let render_with = |trim: Option<f64>| {
+        let (mut ctl, mut eng) = engine_with(&config, "snow");
+        if let Some(db) = trim {
+            ctl.set_trim(0, underfoot::units::Decibels(db)).unwrap();
+        }
+        let mut all = Vec::new();
+        play(&mut ctl, &mut eng, &events, 64, 48_000, |_, _, out| {
+            all.extend_from_slice(out);
+        });
+        all
+    };
+    let plain = render_with(None);
+    assert!(plain.iter().any(|v| *v != 0.0));
+    assert!(plain.iter().all(|v| v.abs() < 0.45), "below the ceiling");
+    // +6 dB is clamped to 0 dB: the same output, sample for sample.
+    assert_eq!(render_with(Some(6.0)), plain);
+    // -6 dB: once the 10 ms smoothing has settled (125 ms: 12.5 time constants), half
+    // the amplitude.
+    let trimmed = render_with(Some(-6.0));
+    let expected = underfoot::units::Decibels(-6.0).to_amplitude() as f32;
+    for (a, b) in trimmed.iter().zip(&plain).skip(6000) {
+        assert!(
+            (a - b * expected).abs() <= 1e-6 + 1e-4 * b.abs(),
+            "{a} against {b}"
+        );
+    }
+    // Refused on the control side: a channel it does not have, a NaN.
+    let (mut ctl, _eng) = engine_with(&config, "snow");
+    assert!(ctl.set_trim(1, underfoot::units::Decibels(-3.0)).is_err());
+    assert!(
+        ctl.set_trim(0, underfoot::units::Decibels(f64::NAN))
+            .is_err()
+    );
+}
+
+/// A material added while the engine runs plays exactly as it would have from a bank
+/// built with it; a full bank refuses more on the control side.
+#[test]
+fn a_material_added_while_playing_sounds_as_if_it_had_been_there() {
+    let voice = VoiceConfig::default();
+    let prepared = |name: &str| {
+        let mut p = underfoot::synthesis::PreparedMaterial::prepare(
+            builtin().get(name).unwrap(),
+            RATE,
+            &voice,
+        )
+        .unwrap();
+        p.normalise_drives(&nominal_step(), Newtons::weight_of(70.0));
+        p
+    };
+    let events = walk_events(1, 1.5);
+    let gravel = bank().slot("gravel").unwrap();
+    let render_switching = |ctl: &mut Controller, eng: &mut Engine, slot: u16| {
+        let mut all = Vec::new();
+        play(ctl, eng, &events, 128, 72_000, |ctl, done, out| {
+            if done == 128 * 150 {
+                ctl.send(TimedEvent::now(Event::Material { channel: 0, slot }))
+                    .unwrap();
+            }
+            all.extend_from_slice(out);
+        });
+        all
+    };
+    // Added: one spare slot.
+    let config = EngineConfig {
+        spare_slots: 1,
+        ..EngineConfig::default()
+    };
+    let (mut ctl, mut eng) = engine::build(&config, bank(), &[gravel]).unwrap();
+    let slot = ctl.add_material(prepared("snow")).unwrap();
+    assert_eq!(usize::from(slot), builtin().materials.len());
+    assert_eq!(ctl.material_names().last().unwrap(), "snow");
+    assert!(matches!(
+        ctl.add_material(prepared("ice")),
+        Err(engine::EngineError::BankFull { capacity: 12 })
+    ));
+    let added = render_switching(&mut ctl, &mut eng, slot);
+    // There from the start: the same bank with the material appended.
+    let mut materials = bank().materials().to_vec();
+    materials.push(prepared("snow"));
+    let (mut ctl, mut eng) = engine::build(
+        &EngineConfig::default(),
+        MaterialBank::from_prepared(materials),
+        &[gravel],
+    )
+    .unwrap();
+    let built = render_switching(&mut ctl, &mut eng, slot);
+    assert_eq!(added, built);
+    assert_eq!(
+        eng_slot(&ctl),
+        Some(slot),
+        "the meter says which slot plays"
+    );
+}
+
+fn eng_slot(ctl: &Controller) -> Option<u16> {
+    ctl.telemetry_handle().take_channel(0).unwrap().slot
+}

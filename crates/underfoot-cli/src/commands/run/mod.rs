@@ -29,15 +29,15 @@ use underfoot::io::spec::{self, InputSpec, OutputSpec, SpecError};
 use underfoot::io::{Backoff, LinkEvent};
 use underfoot::live::adapt::AdaptSettings;
 use underfoot::live::{
-    InterfaceSummary, LiveError, OutputInfo, OutputReport, SerialSettings, Session, SessionConfig,
-    SessionInput, Summary,
+    InterfaceSummary, LiveError, OutputInfo, OutputReport, RunningSession, SerialSettings, Session,
+    SessionConfig, SessionInput, Status, Summary,
 };
 use underfoot::units::{Decibels, Seconds};
 
-use crate::commands::synth::SynthArgs;
+use crate::commands::synth::{Setup, SynthArgs};
 use crate::output::emit;
 
-mod status;
+pub mod status;
 
 /// Arguments of `underfoot run`.
 #[derive(Debug, Args)]
@@ -209,6 +209,15 @@ fn input_help() -> String {
 const DEFAULT_INPUT: &str = "gait:steps=4";
 
 impl RunArgs {
+    /// `--library`, if given (else the built-in library plays).
+    #[cfg_attr(
+        not(feature = "panel"),
+        expect(dead_code, reason = "the panel saves its fits there")
+    )]
+    pub fn library_path(&self) -> Option<std::path::PathBuf> {
+        self.synth.library.clone()
+    }
+
     /// `--output`, or the default: the sound card when this build can play to one, else
     /// `null`, the paced pseudo-device. Never an error: the default build has no audio
     /// (it needs the ALSA headers), and a bare `run` should still run.
@@ -274,10 +283,63 @@ impl RunArgs {
     }
 }
 
+/// Something beside the terminal that watches and steers a session: `panel`'s web page.
+/// Its calls come from the thread that runs the session, which never makes the audio
+/// thread wait.
+pub trait Observer {
+    /// The bank and the channels' first slots, instead of the setup's own: called after
+    /// the setup, before the engine is built. `names` are the `--material` names, one per
+    /// channel or one for all. `None` keeps the setup's.
+    fn prepare(
+        &mut self,
+        setup: &mut Setup,
+        names: &[String],
+        channels: usize,
+    ) -> anyhow::Result<Option<Vec<u16>>>;
+    /// The session has started: what plays, and the handle that steers it.
+    fn started(&mut self, session: &RunningSession, setup: &Setup);
+    /// What the session is doing, every 15 ms or so.
+    fn status(&mut self, status: &Status);
+    /// The session has ended, with its summary or the error it ended on.
+    fn ended(&mut self, outcome: Result<&Summary, &anyhow::Error>);
+}
+
+/// How often the session reports to an observer: often enough for meters that move
+/// smoothly (the loop then polls the input this often too).
+const OBSERVER_EVERY: std::time::Duration = std::time::Duration::from_millis(15);
+
 /// Runs `underfoot run`.
 pub fn run(args: &RunArgs) -> anyhow::Result<()> {
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        // Ctrl-C (and SIGTERM) end the session through the fade-out like any other stop:
+        // killing the stream mid-vibration would put a step on the actuator.
+        let stop = Arc::clone(&stop);
+        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst))
+            .context("installing the Ctrl-C handler")?;
+    }
+    run_session(args, &stop, None)
+}
+
+/// Checks `args` against everything that must hold before a session starts (the files
+/// it writes, the devices list); `Some` when there is nothing to run (the list was
+/// printed).
+pub fn precheck(args: &RunArgs) -> anyhow::Result<Option<()>> {
     if args.list_devices {
-        return list_devices(&args.host);
+        return list_devices(&args.host).map(Some);
+    }
+    Ok(None)
+}
+
+/// Runs the session `args` ask for until it ends or `stop` is set, with `observer`
+/// told what happens.
+pub fn run_session(
+    args: &RunArgs,
+    stop: &Arc<AtomicBool>,
+    mut observer: Option<&mut dyn Observer>,
+) -> anyhow::Result<()> {
+    if precheck(args)?.is_some() {
+        return Ok(());
     }
     for line in args.defaults_taken() {
         eprintln!("underfoot: {line}");
@@ -338,20 +400,24 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     } else {
         args.material.clone()
     };
-    let slots = setup.slots(&names, channels)?;
-    let running = session.start(&setup.config, setup.bank, &slots)?;
+    let slots = match &mut observer {
+        Some(o) => o.prepare(&mut setup, &names, channels)?,
+        None => None,
+    };
+    let slots = match slots {
+        Some(slots) => slots,
+        None => setup.slots(&names, channels)?,
+    };
+    // The bank goes to the engine; the observer may want the setup's other parts.
+    let bank = std::mem::take(&mut setup.bank);
+    let running = session.start(&setup.config, bank, &slots)?;
     eprintln!("underfoot: {}", describe(running.output()));
-
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        // Ctrl-C (and SIGTERM) end the session through the fade-out like any other stop:
-        // killing the stream mid-vibration would put a step on the actuator.
-        let stop = Arc::clone(&stop);
-        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst))
-            .context("installing the Ctrl-C handler")?;
+    if let Some(o) = &mut observer {
+        o.started(&running, &setup);
     }
+
     if std::io::stdin().is_terminal() {
-        let stop = Arc::clone(&stop);
+        let stop = Arc::clone(stop);
         eprintln!("underfoot: running; press Enter or Ctrl-C to stop");
         thread::spawn(move || {
             let mut line = String::new();
@@ -370,33 +436,49 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         (None, None) => None,
     };
     let mut display = status::Display::new(!args.quiet && std::io::stderr().is_terminal(), json);
-    let summary = if display.active() {
+    let summary = if display.active() || observer.is_some() {
         let mut failed = None;
+        let mut paced = status::Paced::new(status::EVERY);
         // Both callbacks draw on the terminal; the session calls them one at a time.
         let display = std::cell::RefCell::new(&mut display);
         let summary = running.run_with_status(
-            &stop,
+            stop,
             |event| {
                 display.borrow_mut().clear();
                 report_link(event);
             },
-            status::EVERY,
+            if observer.is_some() {
+                OBSERVER_EVERY
+            } else {
+                status::EVERY
+            },
             |s| {
+                if let Some(o) = &mut observer {
+                    o.status(s);
+                }
+                let mut display = display.borrow_mut();
                 if failed.is_none()
-                    && let Err(e) = display.borrow_mut().show(s)
+                    && display.active()
+                    && let Some(s) = paced.take(s)
+                    && let Err(e) = display.show(s)
                 {
                     // A status reader that went away does not stop the session.
                     failed = Some(e);
                 }
             },
-        )?;
+        );
         if let Some(e) = failed {
             eprintln!("underfoot: the status stopped: {e}");
         }
         summary
     } else {
-        running.run(&stop, report_link)?
+        running.run(stop, report_link)
     };
+    let summary = summary.map_err(anyhow::Error::from);
+    if let Some(o) = &mut observer {
+        o.ended(summary.as_ref());
+    }
+    let summary = summary?;
     emit(&report(&summary))?;
     if let (Some(out), Some((status, weights))) = (&adapt_out, &summary.adapt) {
         let realisation = setup
@@ -451,7 +533,7 @@ fn report_link(event: &LinkEvent) {
 }
 
 /// The output, as it was started.
-fn describe(output: &OutputInfo) -> String {
+pub fn describe(output: &OutputInfo) -> String {
     match output {
         #[cfg(feature = "audio")]
         OutputInfo::Audio(i) => format!(

@@ -17,6 +17,49 @@ pub const EVERY: Duration = Duration::from_millis(250);
 /// Terminal reports per JSON line: one line a second.
 const JSON_EVERY: u32 = 4;
 
+/// Statuses taken more often than the terminal's refresh, passed on at its pace: the
+/// peaks in between are held (each status's peak is only since the one before it).
+pub struct Paced {
+    every: Duration,
+    last: Option<std::time::Instant>,
+    held: Vec<f32>,
+    merged: Status,
+}
+
+impl Paced {
+    /// Passes on one status per `every`.
+    #[must_use]
+    pub fn new(every: Duration) -> Self {
+        Self {
+            every,
+            last: None,
+            held: Vec::new(),
+            merged: Status::default(),
+        }
+    }
+
+    /// `s`, with the peaks held since the last one passed on, when `every` has passed.
+    pub fn take(&mut self, s: &Status) -> Option<&Status> {
+        self.held.resize(s.channels.len(), 0.0);
+        for (h, ch) in self.held.iter_mut().zip(&s.channels) {
+            *h = h.max(ch.peak);
+        }
+        let now = std::time::Instant::now();
+        if self
+            .last
+            .is_some_and(|t| now.duration_since(t) < self.every)
+        {
+            return None;
+        }
+        self.last = Some(now);
+        self.merged.clone_from(s);
+        for (ch, h) in self.merged.channels.iter_mut().zip(&mut self.held) {
+            ch.peak = std::mem::take(h);
+        }
+        Some(&self.merged)
+    }
+}
+
 /// A level in dBFS for display, `-inf` for silence.
 fn dbfs(peak: f32) -> Option<f64> {
     (peak > 0.0).then(|| 20.0 * f64::from(peak).log10())
@@ -212,6 +255,7 @@ mod tests {
                     strikes: 3,
                     peak: 0.25,
                     limited: 0,
+                    ..ChannelLevels::default()
                 },
                 ChannelLevels::default(),
             ],

@@ -1,0 +1,388 @@
+// The control panel's page: a WebSocket of status (40 to 60 a second) drawn as meters
+// and timelines, and the JSON API for steering, the library and fitting. Plain
+// JavaScript, no build step, no network beyond the panel itself.
+"use strict";
+
+const TOKEN = document.querySelector('meta[name="underfoot-token"]').content;
+const HISTORY_S = 10;
+// Bottom of the level meters and timelines: a step's vibration is often 40-60 dB below
+// full scale, its ring further down.
+const FLOOR_DB = -90;
+// Meters hold their peaks and fall back at this rate, as a studio meter does: each status
+// covers only 20 ms, and a strike lasts about that long.
+const FALL_DB_PER_S = 30;
+
+const $ = (sel, root = document) => root.querySelector(sel);
+const el = (tag, props = {}, ...kids) => {
+  const e = Object.assign(document.createElement(tag), props);
+  for (const k of kids) e.append(k);
+  return e;
+};
+const db = (x) => (x > 0 ? 20 * Math.log10(x) : -Infinity);
+const fmtDb = (d) => (d > FLOOR_DB ? d.toFixed(1) : `< ${FLOOR_DB}`);
+const held = (previous, value, dt) => Math.max(value, previous - FALL_DB_PER_S * dt);
+const pct = (d) => `${Math.max(0, Math.min(100, ((d - FLOOR_DB) / -FLOOR_DB) * 100))}%`;
+
+// Every request that changes something carries the token; the server also checks the
+// page's origin.
+async function api(method, path, body, raw) {
+  const headers = { "X-Underfoot-Token": TOKEN };
+  let payload;
+  if (raw !== undefined) {
+    headers["Content-Type"] = "application/octet-stream";
+    payload = raw;
+  } else if (body !== undefined) {
+    headers["Content-Type"] = "application/json";
+    payload = JSON.stringify(body);
+  }
+  const response = await fetch(path, { method, headers, body: payload });
+  const text = await response.text();
+  let data = null;
+  try { data = text ? JSON.parse(text) : null; } catch (_) { data = { error: text }; }
+  if (!response.ok) throw new Error((data && data.error) || `${response.status} ${response.statusText}`);
+  return data;
+}
+
+const view = {
+  channels: [],        // per channel: { root, history: [], markers: [] }
+  catalog: [],         // /api/library's materials
+  catalogVersion: -1,
+  ceilingDb: 0,
+  strikesBase: null,   // strikes when the page first heard the engine
+  markersSeen: 0,
+
+};
+
+function banner(text, bad) {
+  const b = $("#banner");
+  b.hidden = !text;
+  b.textContent = text || "";
+  b.className = bad ? "bad" : "";
+}
+
+function setLink(text, cls) {
+  const l = $("#link");
+  l.textContent = text;
+  l.className = `pill ${cls}`;
+}
+
+// --- live status -----------------------------------------------------------------------
+
+function connect() {
+  const query = new URLSearchParams(location.search).get("token");
+  const url = `ws://${location.host}/api/ws${query ? `?token=${encodeURIComponent(query)}` : ""}`;
+  const ws = new WebSocket(url);
+  ws.onopen = () => setLink("connected", "ok");
+  ws.onmessage = (m) => update(JSON.parse(m.data));
+  ws.onclose = () => {
+    // The panel may be restarting, or the network blinked: subscribe again.
+    setLink("reconnecting…", "warn");
+    setTimeout(connect, 1000);
+  };
+}
+
+function update(s) {
+  view.ceilingDb = s.ceiling_db;
+  $("#session").textContent = s.session;
+  $("#elapsed").textContent = `${s.elapsed_s.toFixed(1)} s`;
+  $("#events").textContent = s.input.events;
+  $("#rejected").textContent = s.input.rejected;
+  $("#lost").textContent = s.input.lost;
+  $("#late-buffers").textContent = s.engine.late_buffers;
+  $("#late").textContent = s.engine.late_readings;
+  $("#non-finite").textContent = s.engine.non_finite;
+  $("#latency").textContent = s.latency_ms == null ? "–" : `${s.latency_ms.toFixed(1)} ms`;
+  if (s.state === "starting") {
+    setLink("starting", "warn");
+    banner("The session is starting: preparing the materials and opening the devices.", false);
+  } else if (s.state !== "running") {
+    $("#stop").disabled = true;
+    setLink("engine stopped", "bad");
+    banner(`The engine has stopped: ${s.reason}. The page still shows the last levels; start the panel again for a new session.`, s.state === "failed");
+  } else {
+    $("#stop").disabled = false;
+    setLink("live", "ok");
+    banner(s.input.link !== "open" ? `Input ${s.input.link}: the output fades to silence until it comes back.` : "");
+  }
+  if (s.catalog_version !== view.catalogVersion) {
+    view.catalogVersion = s.catalog_version;
+    loadLibrary();
+  }
+  while (view.channels.length < s.channels.length) addChannel(view.channels.length);
+  const total = s.channels.reduce((a, c) => a + c.strikes, 0);
+  if (view.strikesBase === null) view.strikesBase = total;
+  s.channels.forEach((c, i) => updateChannel(view.channels[i], c, s.elapsed_s));
+  document.body.dataset.markers = view.markersSeen;
+  document.body.dataset.strikesBase = view.strikesBase;
+  document.body.dataset.strikes = total;
+}
+
+function addChannel(index) {
+  const root = $("#channel-template").content.firstElementChild.cloneNode(true);
+  root.dataset.channel = index;
+  $("h3", root).textContent = `Channel ${index + 1}`;
+  const ch = {
+    root, history: [], markers: [], strikes: null, select: $("select.material", root),
+    last: null, peak: -Infinity, rms: -Infinity, drive: -Infinity, gr: 0,
+  };
+  ch.select.addEventListener("change", () => steer(index, ch));
+  for (const r of root.querySelectorAll(".model input")) {
+    r.name = `model-${index}`;
+    r.addEventListener("change", () => steer(index, ch));
+  }
+  const gain = $(".gain", root);
+  gain.addEventListener("input", () => { $(".gain-value", root).textContent = `${gain.value} dB`; });
+  gain.addEventListener("change", () =>
+    api("POST", `/api/channels/${index}/gain`, { trim_db: Number(gain.value) }).catch((e) => banner(`gain: ${e.message}`, true)));
+  $("#channels").append(root);
+  view.channels.push(ch);
+  fillMaterials(ch);
+}
+
+function updateChannel(ch, c, t) {
+  const root = ch.root;
+  const material = c.material ? `${c.material}${c.model === "physical" ? " (physical model)" : ""}` : "no material";
+  $("h3", root).textContent = `Channel ${Number(root.dataset.channel) + 1}: ${material}`;
+  const wd = $(".watchdog", root);
+  wd.textContent = c.live ? "sensor input: live" : "no input: faded";
+  wd.className = `watchdog pill ${c.live ? "ok" : "warn"}`;
+  $(".strikes", root).textContent = `${c.strikes} strikes`;
+  // Force per sensor: bars scaled to the body weight.
+  const bars = $(".force .bars", root);
+  while (bars.children.length < c.sensors.length) bars.append(el("i"));
+  while (bars.children.length > Math.max(1, c.sensors.length)) bars.lastChild.remove();
+  c.sensors.forEach((f, i) => bars.children[i].style.setProperty("--w", `${Math.min(100, (f / c.weight_n) * 100)}%`));
+  $(".force .value", root).textContent = `${c.force_n.toFixed(0)} N`;
+  const dt = ch.last === null ? 0 : Math.max(0, t - ch.last);
+  ch.last = t;
+  ch.peak = held(ch.peak, c.peak_dbfs ?? -Infinity, dt);
+  ch.rms = held(ch.rms, c.rms_dbfs ?? -Infinity, dt);
+  ch.drive = held(ch.drive, db(c.drive), dt);
+  ch.gr = Math.max(c.gain_reduction_db, ch.gr - FALL_DB_PER_S * dt, 0);
+  $(".drive i", root).style.width = pct(ch.drive);
+  $(".drive .value", root).textContent = `${fmtDb(ch.drive)} dB`;
+  $(".drive .value", root).title = "the filter's excitation, peak, dB relative to a nominal step";
+  $(".out i.rms", root).style.width = pct(ch.rms);
+  $(".out i.peak", root).style.width = pct(ch.peak);
+  $(".out b.ceiling", root).style.left = pct(view.ceilingDb);
+  $(".out .value", root).textContent = `${fmtDb(ch.peak)} pk ${fmtDb(ch.rms)} rms`;
+  $(".out .value", root).title = "output peak and RMS, dBFS (held, falling 30 dB/s)";
+  $(".gr i", root).style.width = `${Math.min(100, (ch.gr / 20) * 100)}%`;
+  $(".gr .value", root).textContent = ch.gr > 0.05 ? `−${ch.gr.toFixed(1)} dB` : "not limiting";
+  // Strike markers: one per strike the engine counted since the last status.
+  if (ch.strikes !== null && c.strikes > ch.strikes) {
+    for (let k = ch.strikes; k < c.strikes; k++) ch.markers.push(t);
+    view.markersSeen += c.strikes - ch.strikes;
+  }
+  ch.strikes = c.strikes;
+  ch.history.push({ t, peak: c.peak_dbfs ?? -Infinity, force: c.force_n / c.weight_n });
+  while (ch.history.length && ch.history[0].t < t - HISTORY_S) ch.history.shift();
+  while (ch.markers.length && ch.markers[0] < t - HISTORY_S) ch.markers.shift();
+  root.dataset.markers = ch.markers.length;
+  if (document.activeElement !== ch.select) selectCurrent(ch, c);
+  const gain = $(".gain", root);
+  if (document.activeElement !== gain) {
+    gain.value = Math.round(c.trim_db);
+    $(".gain-value", root).textContent = `${Math.round(c.trim_db)} dB`;
+  }
+  drawTimeline(ch, t);
+}
+
+function drawTimeline(ch, now) {
+  const canvas = $("canvas", ch.root);
+  const w = canvas.clientWidth || canvas.width, h = canvas.height;
+  if (canvas.width !== w) canvas.width = w;
+  const g = canvas.getContext("2d");
+  g.clearRect(0, 0, w, h);
+  const x = (t) => w - ((now - t) / HISTORY_S) * w;
+  const y = (d) => h - 4 - (Math.max(0, d - FLOOR_DB) / -FLOOR_DB) * (h - 14);
+  g.font = "11px system-ui, sans-serif";
+  g.fillStyle = "#5e6b7d";
+  g.fillText(`last 10 s: output peak (blue, ${FLOOR_DB} to 0 dBFS), force (purple), strikes (red)`, 6, 12);
+  g.strokeStyle = "#e3e7ee";
+  for (let s = 1; s < HISTORY_S; s++) { g.beginPath(); g.moveTo(x(now - s), 16); g.lineTo(x(now - s), h); g.stroke(); }
+  g.strokeStyle = "#c62828";
+  g.lineWidth = 2;
+  for (const m of ch.markers) { g.beginPath(); g.moveTo(x(m), 16); g.lineTo(x(m), h); g.stroke(); }
+  g.lineWidth = 1.5;
+  const line = (color, value) => {
+    g.strokeStyle = color;
+    g.beginPath();
+    ch.history.forEach((p, i) => (i ? g.lineTo : g.moveTo).call(g, x(p.t), value(p)));
+    g.stroke();
+  };
+  line("#8a5cd0", (p) => h - 4 - Math.min(1.5, Math.max(0, p.force)) / 1.5 * (h - 14));
+  line("#2757c9", (p) => y(p.peak));
+}
+
+// --- steering --------------------------------------------------------------------------
+
+function fillMaterials(ch) {
+  const keep = ch.select.value;
+  ch.select.replaceChildren(...view.catalog.map((m) => el("option", { value: m.name, textContent: m.name })));
+  if (keep) ch.select.value = keep;
+}
+
+function selectCurrent(ch, c) {
+  if (c.material && ch.select.value !== c.material) ch.select.value = c.material;
+  const entry = view.catalog.find((m) => m.name === ch.select.value);
+  for (const r of ch.root.querySelectorAll(".model input")) {
+    r.checked = r.value === c.model;
+    r.disabled = r.value === "physical" && !(entry && entry.slots.physical != null);
+  }
+}
+
+async function steer(index, ch) {
+  const model = ch.root.querySelector(".model input:checked")?.value || "iir";
+  const entry = view.catalog.find((m) => m.name === ch.select.value);
+  const use = model === "physical" && entry && entry.slots.physical == null ? "iir" : model;
+  try {
+    await api("POST", `/api/channels/${index}/material`, { material: ch.select.value, model: use });
+  } catch (e) {
+    banner(`channel ${index + 1}: ${e.message}`, true);
+  }
+}
+
+$("#stop").addEventListener("click", () => {
+  api("POST", "/api/stop", {}).catch((e) => banner(`stop: ${e.message}`, true));
+});
+
+// --- library ---------------------------------------------------------------------------
+
+async function loadLibrary() {
+  const lib = await api("GET", "/api/library");
+  view.catalog = lib.materials;
+  $("#library-origin").textContent = lib.origin;
+  const rows = lib.materials.map((m, i) => {
+    const loo = m.leave_one_out ? m.leave_one_out.mean_lsd_db.toFixed(2) : "–";
+    const phys = m.physical ? `${m.physical.kind}, ${m.physical.modes} modes, LSD ${m.physical.lsd_db.toFixed(2)} dB` : "none";
+    const tr = el("tr", {},
+      el("td", { textContent: m.name + (m.added ? " (fitted here)" : "") }),
+      el("td", { className: "num", textContent: m.order }),
+      el("td", { className: "num", textContent: m.nrmse.toFixed(4) }),
+      el("td", { className: "num", textContent: m.lsd_db.toFixed(2) }),
+      el("td", { className: "num", textContent: m.strikes }),
+      el("td", { className: "num", textContent: loo }),
+      el("td", { textContent: phys }));
+    tr.dataset.material = m.name;
+    tr.addEventListener("click", () => showResponse(i));
+    return tr;
+  });
+  $("#library tbody").replaceChildren(...rows);
+  for (const ch of view.channels) fillMaterials(ch);
+  if (lib.materials.length && !$("#response").firstChild) showResponse(0);
+}
+
+function showResponse(i) {
+  const m = view.catalog[i];
+  for (const tr of document.querySelectorAll("#library tbody tr")) tr.classList.toggle("selected", tr.dataset.material === m.name);
+  $("#response").replaceChildren(responsePlot(m));
+}
+
+// Measured against model magnitude, dB on a log-frequency axis, as `fit --plot` draws it.
+function responsePlot(m) {
+  const W = 900, H = 300, L = 56, R = 16, T = 30, B = 40;
+  const ns = "http://www.w3.org/2000/svg";
+  const svg = document.createElementNS(ns, "svg");
+  svg.setAttribute("viewBox", `0 0 ${W} ${H}`);
+  const add = (tag, attrs, text) => {
+    const e = document.createElementNS(ns, tag);
+    for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v);
+    if (text !== undefined) e.textContent = text;
+    svg.append(e);
+    return e;
+  };
+  const f = m.grid_hz, all = m.measured_db.concat(m.model_db).filter(Number.isFinite);
+  const top = Math.ceil(Math.max(...all) / 10) * 10, bottom = Math.max(Math.floor(Math.min(...all) / 10) * 10, top - 90);
+  const lf0 = Math.log10(f[0]), lf1 = Math.log10(f[f.length - 1]);
+  const x = (hz) => L + ((Math.log10(hz) - lf0) / (lf1 - lf0)) * (W - L - R);
+  const y = (d) => T + ((top - Math.max(bottom, d)) / (top - bottom)) * (H - T - B);
+  add("text", { x: L, y: 18, "font-size": 14, "font-weight": 600 },
+    `${m.name}: order ${m.order}, NRMSE ${m.nrmse.toFixed(4)}, LSD ${m.lsd_db.toFixed(2)} dB`);
+  for (let d = bottom; d <= top; d += 10) {
+    add("line", { x1: L, x2: W - R, y1: y(d), y2: y(d), stroke: "#e3e7ee" });
+    add("text", { x: L - 6, y: y(d) + 4, "font-size": 11, "text-anchor": "end", fill: "#5e6b7d" }, d);
+  }
+  for (const hz of [10, 20, 50, 100, 200, 500, 1000, 2000, 5000]) {
+    if (hz < f[0] || hz > f[f.length - 1]) continue;
+    add("line", { x1: x(hz), x2: x(hz), y1: T, y2: H - B, stroke: "#e3e7ee" });
+    add("text", { x: x(hz), y: H - B + 15, "font-size": 11, "text-anchor": "middle", fill: "#5e6b7d" }, hz >= 1000 ? `${hz / 1000}k` : hz);
+  }
+  add("text", { x: (L + W - R) / 2, y: H - 6, "font-size": 12, "text-anchor": "middle", fill: "#5e6b7d" }, "frequency (Hz)");
+  add("text", { x: 14, y: (T + H - B) / 2, "font-size": 12, "text-anchor": "middle", fill: "#5e6b7d", transform: `rotate(-90 14 ${(T + H - B) / 2})` }, "magnitude (dB, relative)");
+  const path = (values, color, width) => add("polyline", {
+    points: values.map((d, i) => `${x(f[i]).toFixed(1)},${y(d).toFixed(1)}`).join(" "),
+    fill: "none", stroke: color, "stroke-width": width,
+  });
+  path(m.measured_db, "#1d2430", 1.5);
+  path(m.model_db, "#c62828", 2);
+  add("line", { x1: W - R - 190, x2: W - R - 170, y1: T + 8, y2: T + 8, stroke: "#1d2430", "stroke-width": 2 });
+  add("text", { x: W - R - 165, y: T + 12, "font-size": 12 }, "measured");
+  add("line", { x1: W - R - 95, x2: W - R - 75, y1: T + 8, y2: T + 8, stroke: "#c62828", "stroke-width": 2 });
+  add("text", { x: W - R - 70, y: T + 12, "font-size": 12 }, "model");
+  return svg;
+}
+
+// --- fitting ---------------------------------------------------------------------------
+
+const uploaded = [];
+
+async function upload(files) {
+  for (const file of files) {
+    const li = el("li", { textContent: `${file.name}: uploading…` });
+    $("#uploads").append(li);
+    try {
+      const r = await api("POST", `/api/uploads?name=${encodeURIComponent(file.name)}`, undefined, file);
+      uploaded.push(r.id);
+      li.textContent = `${r.name}: ${(r.bytes / 1024).toFixed(0)} kB`;
+    } catch (e) {
+      li.textContent = `${file.name}: ${e.message}`;
+      li.className = "bad";
+    }
+  }
+  $("#fit-button").disabled = uploaded.length === 0;
+}
+
+const drop = $("#drop");
+drop.addEventListener("dragover", (e) => { e.preventDefault(); drop.classList.add("over"); });
+drop.addEventListener("dragleave", () => drop.classList.remove("over"));
+drop.addEventListener("drop", (e) => { e.preventDefault(); drop.classList.remove("over"); upload([...e.dataTransfer.files]); });
+$("#files").addEventListener("change", (e) => upload([...e.target.files]));
+
+$("#fit-form").addEventListener("submit", async (e) => {
+  e.preventDefault();
+  const name = $("#fit-name").value.trim();
+  $("#fit-button").disabled = true;
+  $("#fit-result").replaceChildren();
+  try {
+    const job = await api("POST", "/api/fit", { name, uploads: uploaded.slice() });
+    await follow(job.id);
+  } catch (err) {
+    $("#fit-progress").textContent = "";
+    $("#fit-result").replaceChildren(el("p", { className: "bad", textContent: `fit failed: ${err.message}` }));
+  } finally {
+    $("#fit-button").disabled = uploaded.length === 0;
+  }
+});
+
+async function follow(id) {
+  for (;;) {
+    const j = await api("GET", `/api/fit/${id}`);
+    $("#fit-progress").textContent = j.progress;
+    if (j.state === "failed") throw new Error(j.error);
+    if (j.state === "done") {
+      uploaded.length = 0;
+      $("#uploads").replaceChildren();
+      const m = j.material;
+      const loo = m.leave_one_out ? `, leave-one-out LSD ${m.leave_one_out.mean_lsd_db.toFixed(2)} dB` : " (one recording: no leave-one-out check)";
+      $("#fit-result").replaceChildren(
+        el("p", { textContent: `${m.name}: order ${m.order}, NRMSE ${m.nrmse.toFixed(4)}, LSD ${m.lsd_db.toFixed(2)} dB, ${m.strikes} strikes${loo}. ${j.saved}. Playable now: pick it in a channel's material list.` }),
+        responsePlot(m));
+      await loadLibrary();
+      return;
+    }
+    await new Promise((r) => setTimeout(r, 300));
+  }
+}
+
+connect();

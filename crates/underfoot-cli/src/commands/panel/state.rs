@@ -1,0 +1,556 @@
+//! What the panel's server and the session share: the latest status (as JSON, for the
+//! WebSocket and `/api/status`), the catalog of playable materials and their bank
+//! slots, the handle that steers the session, uploads and fit jobs.
+//!
+//! The session's thread writes the status through [`PanelObserver`]; the server's thread
+//! reads it. Locks here are only ever taken by those two threads and the fitting
+//! threads, never by the audio thread.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex, MutexGuard};
+
+use serde::Serialize;
+use serde_json::json;
+use tokio::sync::watch;
+use underfoot::engine::MaterialBank;
+use underfoot::live::{Remote, RunningSession, Status, Summary};
+use underfoot::material::MaterialModel;
+use underfoot::synthesis::{PreparedMaterial, SynthModel, VoiceConfig};
+use underfoot::units::{Newtons, SampleRate};
+
+use super::fitting::{Jobs, Uploads};
+use crate::commands::run::Observer;
+use crate::commands::synth::Setup;
+use crate::report::{FitReportEntry, LeaveOneOutReport};
+
+/// Bank slots reserved for materials fitted from the page (two per fit: its filter and
+/// its physical model).
+pub const SPARE_SLOTS: usize = 32;
+
+/// Which of a material's models a slot plays.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Model {
+    Iir,
+    Physical,
+}
+
+/// The slots a material plays from.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Slots {
+    pub iir: u16,
+    pub physical: Option<u16>,
+}
+
+/// A material the page can choose.
+pub struct Entry {
+    pub model: MaterialModel,
+    pub slots: Slots,
+    /// Fitted from the page in this session.
+    pub added: bool,
+    /// The leave-one-out check, for materials fitted from the page (a library does not
+    /// keep it).
+    pub leave_one_out: Option<LeaveOneOutReport>,
+}
+
+impl Entry {
+    /// The library's view of the material: the `fit --report` entry, its response on the
+    /// fit's grid in dB, and its slots.
+    pub fn to_json(&self) -> serde_json::Value {
+        let fit = &self.model.fit;
+        let mut report = FitReportEntry::of(&self.model);
+        report.leave_one_out.clone_from(&self.leave_one_out);
+        let to_db = |v: &[f64]| -> Vec<Option<f64>> {
+            v.iter()
+                .map(|m| (*m > 0.0).then(|| 20.0 * m.log10()))
+                .collect()
+        };
+        json!({
+            "name": self.model.name,
+            "order": self.model.order,
+            "nrmse": fit.nrmse,
+            "lsd_db": fit.lsd_db,
+            "strikes": fit.strikes,
+            "poor_fit": fit.poor_fit,
+            "fit_seconds": fit.fit_seconds,
+            "physical": report.physical,
+            "physical_model": self.model.physical,
+            "leave_one_out": report.leave_one_out,
+            "sources": report.sources,
+            "grid_hz": fit.grid_hz,
+            "measured_db": to_db(&fit.measured),
+            "model_db": to_db(&fit.model),
+            "slots": self.slots,
+            "added": self.added,
+        })
+    }
+}
+
+/// How the session's materials were prepared, so that a fitted one is prepared alike.
+#[derive(Clone)]
+pub struct Preparation {
+    pub rate: SampleRate,
+    pub voice: VoiceConfig,
+    pub nominal_step: Vec<f64>,
+    pub weight: Newtons,
+}
+
+impl Preparation {
+    /// The material's filter, and its physical model if it has one, ready for the engine.
+    pub fn prepare(
+        &self,
+        model: &MaterialModel,
+    ) -> anyhow::Result<(PreparedMaterial, Option<PreparedMaterial>)> {
+        let one = |kind| -> anyhow::Result<PreparedMaterial> {
+            let voice = VoiceConfig {
+                model: kind,
+                ..self.voice.clone()
+            };
+            let mut p = PreparedMaterial::prepare(model, self.rate, &voice)?;
+            p.normalise_drives(&self.nominal_step, self.weight);
+            Ok(p)
+        };
+        let physical = match model.physical {
+            Some(_) => Some(one(SynthModel::Physical)?),
+            None => None,
+        };
+        Ok((one(SynthModel::Iir)?, physical))
+    }
+}
+
+/// Where the session is.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Phase {
+    Starting,
+    Running,
+    Ended(String),
+    Failed(String),
+}
+
+/// The session as the panel sees it.
+pub struct SessionView {
+    pub remote: Option<Remote>,
+    pub entries: Vec<Entry>,
+    /// Each bank slot's entry and model.
+    pub slots: Vec<(usize, Model)>,
+    /// Bumped whenever `entries` changes: the page reloads the library.
+    pub version: u64,
+    pub origin: String,
+    pub preparation: Option<Preparation>,
+    pub describe: String,
+    pub ceiling_db: f64,
+    pub weight: Newtons,
+    pub phase: Phase,
+    /// The last status, to report again when the session has ended.
+    pub last: Option<Status>,
+}
+
+impl SessionView {
+    /// Records a material and its slots; one of the same name is replaced in the list
+    /// (its old slots stay in the bank, unused).
+    pub fn add(&mut self, entry: Entry) {
+        let index = match self
+            .entries
+            .iter()
+            .position(|e| e.model.name == entry.model.name)
+        {
+            Some(i) => {
+                self.entries[i] = entry;
+                i
+            }
+            None => {
+                self.entries.push(entry);
+                self.entries.len() - 1
+            }
+        };
+        let slots = self.entries[index].slots;
+        for (slot, model) in [
+            (Some(slots.iir), Model::Iir),
+            (slots.physical, Model::Physical),
+        ] {
+            if let Some(slot) = slot {
+                let slot = usize::from(slot);
+                if self.slots.len() <= slot {
+                    self.slots.resize(slot + 1, (index, model));
+                }
+                self.slots[slot] = (index, model);
+            }
+        }
+        self.version += 1;
+    }
+
+    /// The slot that plays `name` with `model`.
+    pub fn slot_of(&self, name: &str, model: Model) -> Result<u16, String> {
+        let entry = self
+            .entries
+            .iter()
+            .find(|e| e.model.name == name)
+            .ok_or_else(|| {
+                format!(
+                    "no material {:?} (there are: {})",
+                    truncate(name),
+                    self.entries
+                        .iter()
+                        .map(|e| e.model.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            })?;
+        match model {
+            Model::Iir => Ok(entry.slots.iir),
+            Model::Physical => entry
+                .slots
+                .physical
+                .ok_or_else(|| format!("{name} has no physical model")),
+        }
+    }
+
+    /// The status as the page and the API read it.
+    pub fn status_json(&self) -> String {
+        let (state, reason) = match &self.phase {
+            Phase::Starting => ("starting", String::new()),
+            Phase::Running => ("running", String::new()),
+            Phase::Ended(r) => ("ended", r.clone()),
+            Phase::Failed(r) => ("failed", r.clone()),
+        };
+        let default = Status::default();
+        let s = self.last.as_ref().unwrap_or(&default);
+        let t = &s.telemetry;
+        let dbfs = |x: f32| (x > 0.0).then(|| 20.0 * f64::from(x).log10());
+        let channels: Vec<_> = s
+            .channels
+            .iter()
+            .map(|c| {
+                let (material, model) = c
+                    .slot
+                    .and_then(|slot| self.slots.get(usize::from(slot)))
+                    .map_or((None, None), |(e, m)| {
+                        (Some(self.entries[*e].model.name.as_str()), Some(*m))
+                    });
+                json!({
+                    "force_n": c.force,
+                    "sensors": &c.sensors[..usize::from(c.sensor_count)],
+                    "weight_n": self.weight.0,
+                    "strikes": c.strikes,
+                    "peak_dbfs": dbfs(c.peak),
+                    "rms_dbfs": dbfs(c.rms),
+                    "drive": c.drive,
+                    "gain_reduction_db": (-20.0 * f64::from(c.limiter_gain.max(1e-6)).log10()).max(0.0),
+                    "limited": c.limited,
+                    "live": c.live,
+                    "slot": c.slot,
+                    "material": material,
+                    "model": model,
+                    "trim_db": dbfs(c.trim).unwrap_or(-120.0),
+                })
+            })
+            .collect();
+        let link = if s.input.disconnects > s.input.reconnects {
+            "lost"
+        } else {
+            "open"
+        };
+        json!({
+            "state": state,
+            "reason": reason,
+            "session": self.describe,
+            "elapsed_s": s.elapsed.as_secs_f64(),
+            "ceiling_db": self.ceiling_db,
+            "latency_ms": s.output_latency.map(|l| l.0 * 1e3),
+            "catalog_version": self.version,
+            "input": {
+                "events": s.input.events,
+                "rejected": s.input.rejected,
+                "lost": s.queue_full + t.dropped,
+                "disconnects": s.input.disconnects,
+                "link": link,
+            },
+            "engine": {
+                "frames": t.frames,
+                "strikes": t.strikes,
+                "late_buffers": s.late_buffers,
+                "late_readings": t.late,
+                "non_finite": t.non_finite,
+                "watchdog_trips": t.watchdog_trips,
+                "limited": t.limited,
+            },
+            "channels": channels,
+        })
+        .to_string()
+    }
+}
+
+/// Everything the server and the session share.
+pub struct Shared {
+    token: String,
+    address: SocketAddr,
+    remote: bool,
+    /// `Host` headers that name this server.
+    hosts: Vec<String>,
+    status: watch::Sender<Arc<str>>,
+    quit: watch::Sender<bool>,
+    session: Mutex<SessionView>,
+    pub uploads: Mutex<Uploads>,
+    pub jobs: Jobs,
+    /// Where fitted materials are saved (`--library`), if anywhere.
+    pub library: Option<PathBuf>,
+}
+
+impl Shared {
+    /// The panel's state for a server on `address`.
+    pub fn new(
+        address: SocketAddr,
+        remote: bool,
+        library: Option<PathBuf>,
+    ) -> anyhow::Result<Self> {
+        let port = address.port();
+        let mut hosts = vec![
+            address.to_string(),
+            format!("localhost:{port}"),
+            format!("127.0.0.1:{port}"),
+            format!("[::1]:{port}"),
+        ];
+        if port == 80 {
+            hosts.extend([
+                "localhost".into(),
+                "127.0.0.1".into(),
+                address.ip().to_string(),
+            ]);
+        }
+        let view = SessionView {
+            remote: None,
+            entries: Vec::new(),
+            slots: Vec::new(),
+            version: 0,
+            origin: String::new(),
+            preparation: None,
+            describe: "starting".into(),
+            ceiling_db: 0.0,
+            weight: Newtons::weight_of(70.0),
+            phase: Phase::Starting,
+            last: None,
+        };
+        let first: Arc<str> = view.status_json().into();
+        Ok(Self {
+            token: token(),
+            address,
+            remote,
+            hosts,
+            status: watch::Sender::new(first),
+            quit: watch::Sender::new(false),
+            session: Mutex::new(view),
+            uploads: Mutex::new(Uploads::new()?),
+            jobs: Jobs::default(),
+            library,
+        })
+    }
+
+    /// The token state-changing requests carry.
+    pub fn token(&self) -> &str {
+        &self.token
+    }
+
+    /// Whether other machines may connect (every request then needs the token).
+    pub fn is_remote(&self) -> bool {
+        self.remote
+    }
+
+    /// The address served.
+    pub fn address(&self) -> SocketAddr {
+        self.address
+    }
+
+    /// Whether `host` (a `Host` header) names this server. With `--allow-remote` the
+    /// machine may be reached under any name, and the token guards every request.
+    pub fn is_our_host(&self, host: &str) -> bool {
+        self.remote || self.hosts.iter().any(|h| h.eq_ignore_ascii_case(host))
+    }
+
+    /// The session's view (locks: never held across an await or a wait).
+    pub fn session(&self) -> MutexGuard<'_, SessionView> {
+        // A panic while holding it would be a bug elsewhere; the view itself is still
+        // consistent enough to show.
+        self.session
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    /// The latest status, and a way to wait for the next.
+    pub fn subscribe(&self) -> watch::Receiver<Arc<str>> {
+        self.status.subscribe()
+    }
+
+    /// The latest status.
+    pub fn status(&self) -> Arc<str> {
+        self.status.borrow().clone()
+    }
+
+    fn publish(&self, view: &SessionView) {
+        self.status.send_replace(view.status_json().into());
+    }
+
+    /// Tells the server to finish: open WebSockets close, then it stops listening.
+    pub fn shut_down(&self) {
+        self.quit.send_replace(true);
+    }
+
+    /// Resolves when [`shut_down`](Self::shut_down) has been called.
+    pub fn quitting(&self) -> watch::Receiver<bool> {
+        self.quit.subscribe()
+    }
+}
+
+/// A random token of 128 bits, from the standard library's OS-seeded hasher keys (no
+/// extra dependency; each `RandomState` draws fresh keys).
+fn token() -> String {
+    use std::hash::{BuildHasher, Hasher};
+    let mut out = String::new();
+    for i in 0..2u8 {
+        let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+        h.write_u8(i);
+        h.write_u128(
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_nanos()),
+        );
+        out.push_str(&format!("{:016x}", h.finish()));
+    }
+    out
+}
+
+/// Something a request gave, for a message: a long word cut to its ends.
+pub fn truncate(s: &str) -> String {
+    crate::message::shorten(s).into_owned()
+}
+
+/// The session's side of the panel: what it plays, its status, its end.
+pub struct PanelObserver {
+    shared: Arc<Shared>,
+}
+
+impl PanelObserver {
+    pub fn new(shared: Arc<Shared>) -> Self {
+        Self { shared }
+    }
+}
+
+impl Observer for PanelObserver {
+    fn prepare(
+        &mut self,
+        setup: &mut Setup,
+        names: &[String],
+        channels: usize,
+    ) -> anyhow::Result<Option<Vec<u16>>> {
+        let preparation = Preparation {
+            rate: setup.config.rate,
+            voice: setup.voice.clone(),
+            nominal_step: setup.nominal_step.clone(),
+            weight: setup.config.nominal_weight,
+        };
+        // Every material's filter first, in library order (so that names find their
+        // filter, as OSC material messages expect), then the physical models.
+        let mut filters = Vec::new();
+        let mut physicals = Vec::new();
+        for m in &setup.library.materials {
+            let (iir, physical) = preparation.prepare(m)?;
+            filters.push(iir);
+            physicals.push(physical);
+        }
+        let n = filters.len();
+        let mut view = self.shared.session();
+        let mut bank = filters;
+        for (i, (m, physical)) in setup.library.materials.iter().zip(physicals).enumerate() {
+            let physical_slot = physical.map(|p| {
+                bank.push(p);
+                (bank.len() - 1) as u16
+            });
+            view.entries.push(Entry {
+                model: m.clone(),
+                slots: Slots {
+                    iir: i as u16,
+                    physical: physical_slot,
+                },
+                added: false,
+                leave_one_out: None,
+            });
+        }
+        let view = &mut *view;
+        view.slots = vec![(0, Model::Iir); bank.len()];
+        for (i, e) in view.entries.iter().enumerate() {
+            view.slots[usize::from(e.slots.iir)] = (i, Model::Iir);
+            if let Some(p) = e.slots.physical {
+                view.slots[usize::from(p)] = (i, Model::Physical);
+            }
+        }
+        debug_assert_eq!(n, view.entries.len());
+        let wanted = if setup.voice.model == SynthModel::Physical {
+            Model::Physical
+        } else {
+            Model::Iir
+        };
+        let first = names
+            .iter()
+            .map(|name| {
+                view.slot_of(name, wanted)
+                    .or_else(|_| view.slot_of(name, Model::Iir))
+                    .map_err(|e| anyhow::anyhow!("--material: {e} (in {})", setup.origin))
+            })
+            .collect::<anyhow::Result<Vec<u16>>>()?;
+        let last = *first
+            .last()
+            .ok_or_else(|| anyhow::anyhow!("no material given"))?;
+        view.origin = setup.origin.clone();
+        view.preparation = Some(preparation);
+        view.weight = setup.config.nominal_weight;
+        view.ceiling_db = setup.config.ceiling.0;
+        setup.bank = MaterialBank::from_prepared(bank);
+        setup.config.spare_slots = SPARE_SLOTS;
+        Ok(Some(
+            (0..channels)
+                .map(|c| first.get(c).copied().unwrap_or(last))
+                .collect(),
+        ))
+    }
+
+    fn started(&mut self, session: &RunningSession, _setup: &Setup) {
+        let mut view = self.shared.session();
+        view.remote = Some(session.remote());
+        view.describe = crate::commands::run::describe(session.output());
+        view.phase = Phase::Running;
+        view.version += 1;
+        self.shared.publish(&view);
+    }
+
+    fn status(&mut self, status: &Status) {
+        let mut view = self.shared.session();
+        match &mut view.last {
+            Some(last) => last.clone_from(status),
+            None => view.last = Some(status.clone()),
+        }
+        self.shared.publish(&view);
+    }
+
+    fn ended(&mut self, outcome: Result<&Summary, &anyhow::Error>) {
+        let mut view = self.shared.session();
+        view.remote = None;
+        view.phase = match outcome {
+            Ok(summary) => Phase::Ended(match &summary.lost {
+                Some(event) => {
+                    format!("the input was lost ({event}) and --exit-on-disconnect is set")
+                }
+                None => format!(
+                    "the session ended after {:.1} s (the input played out, the stop button, \
+                     Ctrl-C or --duration)",
+                    summary.elapsed.as_secs_f64()
+                ),
+            }),
+            Err(e) => Phase::Failed(format!("{e:#}")),
+        };
+        if let (Some(last), Ok(summary)) = (&mut view.last, outcome) {
+            last.telemetry = summary.telemetry;
+            last.input = summary.input;
+        }
+        self.shared.publish(&view);
+    }
+}
