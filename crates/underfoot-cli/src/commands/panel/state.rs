@@ -13,7 +13,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use serde::Serialize;
 use serde_json::json;
 use tokio::sync::watch;
-use underfoot::engine::MaterialBank;
+use underfoot::engine::{ChannelLevels, MaterialBank};
 use underfoot::live::{Remote, RunningSession, Status, Summary};
 use underfoot::material::MaterialModel;
 use underfoot::synthesis::{PreparedMaterial, SynthModel, VoiceConfig};
@@ -500,6 +500,11 @@ impl Observer for PanelObserver {
         let last = *first
             .last()
             .ok_or_else(|| anyhow::anyhow!("no material given"))?;
+        // Until the session's first status, each channel shows as silent.
+        view.last = Some(Status {
+            channels: vec![ChannelLevels::default(); channels],
+            ..Status::default()
+        });
         view.origin = setup.origin.clone();
         view.preparation = Some(preparation);
         view.weight = setup.config.nominal_weight;

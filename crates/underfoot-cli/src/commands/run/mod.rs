@@ -298,7 +298,7 @@ pub trait Observer {
     ) -> anyhow::Result<Option<Vec<u16>>>;
     /// The session has started: what plays, and the handle that steers it.
     fn started(&mut self, session: &RunningSession, setup: &Setup);
-    /// What the session is doing, every 15 ms or so.
+    /// What the session is doing, every 10 ms or so.
     fn status(&mut self, status: &Status);
     /// The session has ended, with its summary or the error it ended on.
     fn ended(&mut self, outcome: Result<&Summary, &anyhow::Error>);
@@ -306,7 +306,7 @@ pub trait Observer {
 
 /// How often the session reports to an observer: often enough for meters that move
 /// smoothly (the loop then polls the input this often too).
-const OBSERVER_EVERY: std::time::Duration = std::time::Duration::from_millis(15);
+const OBSERVER_EVERY: std::time::Duration = std::time::Duration::from_millis(10);
 
 /// Runs `underfoot run`.
 pub fn run(args: &RunArgs) -> anyhow::Result<()> {

@@ -50,6 +50,7 @@ const view = {
   ceilingDb: 0,
   strikesBase: null,   // strikes when the page first heard the engine
   markersSeen: 0,
+  drawing: false,      // a frame is asked for to draw the timelines
 
 };
 
@@ -185,7 +186,15 @@ function updateChannel(ch, c, t) {
     gain.value = Math.round(c.trim_db);
     $(".gain-value", root).textContent = `${Math.round(c.trim_db)} dB`;
   }
-  drawTimeline(ch, t);
+  ch.now = t;
+  if (!view.drawing) {
+    // Statuses come faster than the screen refreshes: draw the timelines once a frame.
+    view.drawing = true;
+    requestAnimationFrame(() => {
+      view.drawing = false;
+      for (const c of view.channels) if (c.now !== undefined) drawTimeline(c, c.now);
+    });
+  }
 }
 
 function drawTimeline(ch, now) {
