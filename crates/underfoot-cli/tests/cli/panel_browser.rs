@@ -352,6 +352,17 @@ fn the_panel_works_in_a_headless_browser() {
     let shot = screenshots().join("panel.png");
     browser.screenshot(&shot);
     eprintln!("screenshot: {}", shot.display());
+    // A library row shows its response and its physical model's parameters.
+    browser.click("#library tbody tr[data-material='gravel']");
+    browser.wait_for(
+        Duration::from_secs(5),
+        "gravel's response and parameters",
+        "return document.querySelector('#response svg').textContent.includes('gravel: order') && \
+         document.querySelector('#response .params').textContent.includes('events per newton')",
+    );
+    browser.script("document.querySelector('#library-section').scrollIntoView()");
+    std::thread::sleep(Duration::from_millis(300));
+    browser.screenshot(&screenshots().join("panel-library.png"));
     browser.script("document.querySelector('#fit-section').scrollIntoView()");
     std::thread::sleep(Duration::from_millis(300));
     browser.screenshot(&screenshots().join("panel-fit.png"));

@@ -285,7 +285,38 @@ async function loadLibrary() {
 function showResponse(i) {
   const m = view.catalog[i];
   for (const tr of document.querySelectorAll("#library tbody tr")) tr.classList.toggle("selected", tr.dataset.material === m.name);
-  $("#response").replaceChildren(responsePlot(m));
+  $("#response").replaceChildren(responsePlot(m), physicalTable(m));
+}
+
+// The physical model's parameters, as the library stores them.
+function physicalTable(m) {
+  const p = m.physical_model;
+  if (!p) return el("p", { className: "params", textContent: `${m.name} has no physical model (its calibration failed or was not run).` });
+  const fmt = (x, unit = "") => {
+    if (typeof x !== "number") return String(x);
+    const big = x !== 0 && (Math.abs(x) >= 1e5 || Math.abs(x) < 1e-3);
+    return `${big ? x.toExponential(3).replace("e+", "e") : Number(x.toPrecision(4))}${unit}`;
+  };
+  const freqs = p.modes.map((mode) => mode.freq ?? mode.frequency ?? mode.f).filter((f) => typeof f === "number");
+  const rows = [
+    ["kind", p.kind],
+    ["modes", freqs.length ? `${p.modes.length}, ${fmt(Math.min(...freqs), " Hz")} to ${fmt(Math.max(...freqs), " Hz")}` : p.modes.length],
+    ["hammer mass", fmt(p.hammer.mass, " kg")],
+    ["contact stiffness k", fmt(p.hammer.stiffness, " N/m^α")],
+    ["contact exponent α", fmt(p.hammer.alpha)],
+    ["contact damping λ", fmt(p.hammer.damping, " N·s/m^(α+1)")],
+    ["strike velocity (RMS)", fmt(p.hammer.velocity, " m/s")],
+  ];
+  if (p.kind === "aggregate") {
+    rows.push(["events per newton α", fmt(p.events_per_newton)], ["fragment size spread", fmt(p.size_spread)], ["impacts in flight", fmt(p.voices)]);
+  }
+  rows.push(["output gain", fmt(p.output_gain)]);
+  if (p.record) {
+    rows.push(["calibration LSD", fmt(p.record.lsd_db, " dB")], ["onsets per strike", fmt(p.record.onsets_per_strike)], ["half-energy time", fmt(p.record.half_energy_ms, " ms")]);
+  }
+  return el("div", { className: "params" },
+    el("h3", { textContent: `${m.name}: physical model` }),
+    el("dl", {}, ...rows.flatMap(([k, v]) => [el("dt", { textContent: k }), el("dd", { textContent: v })])));
 }
 
 // Measured against model magnitude, dB on a log-frequency axis, as `fit --plot` draws it.
