@@ -285,19 +285,14 @@ fn fit(
             .to_owned(),
     };
     progress("preparing it for the engine".into());
-    let (iir, physical) = {
+    let (preparation, remote) = {
         let view = shared.session();
-        let preparation = view
-            .preparation
-            .clone()
-            .ok_or_else(|| anyhow::anyhow!("the session has not started"))?;
-        drop(view);
-        preparation.prepare(&model)?
+        (view.preparation.clone(), view.remote.clone())
     };
-    let remote = shared
-        .session()
-        .remote
-        .clone()
+    let (iir, physical) = preparation
+        .ok_or_else(|| anyhow::anyhow!("the session has not started"))?
+        .prepare(&model)?;
+    let remote = remote
         .ok_or_else(|| anyhow::anyhow!("the session has ended: the material was not added"))?;
     let slot = |m| -> anyhow::Result<u16> {
         remote

@@ -457,7 +457,6 @@ impl Observer for PanelObserver {
             filters.push(iir);
             physicals.push(physical);
         }
-        let n = filters.len();
         let mut view = self.shared.session();
         let mut bank = filters;
         for (i, (m, physical)) in setup.library.materials.iter().zip(physicals).enumerate() {
@@ -465,7 +464,8 @@ impl Observer for PanelObserver {
                 bank.push(p);
                 (bank.len() - 1) as u16
             });
-            view.entries.push(Entry {
+            // The same bookkeeping as a material fitted from the page.
+            view.add(Entry {
                 model: m.clone(),
                 slots: Slots {
                     iir: i as u16,
@@ -475,15 +475,6 @@ impl Observer for PanelObserver {
                 leave_one_out: None,
             });
         }
-        let view = &mut *view;
-        view.slots = vec![(0, Model::Iir); bank.len()];
-        for (i, e) in view.entries.iter().enumerate() {
-            view.slots[usize::from(e.slots.iir)] = (i, Model::Iir);
-            if let Some(p) = e.slots.physical {
-                view.slots[usize::from(p)] = (i, Model::Physical);
-            }
-        }
-        debug_assert_eq!(n, view.entries.len());
         let wanted = if setup.voice.model == SynthModel::Physical {
             Model::Physical
         } else {
