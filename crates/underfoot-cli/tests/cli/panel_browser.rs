@@ -358,7 +358,8 @@ fn the_panel_works_in_a_headless_browser() {
         Duration::from_secs(5),
         "gravel's response and parameters",
         "return document.querySelector('#response svg').textContent.includes('gravel: order') && \
-         document.querySelector('#response .params').textContent.includes('events per newton')",
+         document.querySelector('#response .params').textContent.includes('events per newton') && \
+         / Hz to [0-9.]+ Hz/.test(document.querySelector('#response .params').textContent)",
     );
     browser.script("document.querySelector('#library-section').scrollIntoView()");
     std::thread::sleep(Duration::from_millis(300));

@@ -297,10 +297,10 @@ function physicalTable(m) {
     const big = x !== 0 && (Math.abs(x) >= 1e5 || Math.abs(x) < 1e-3);
     return `${big ? x.toExponential(3).replace("e+", "e") : Number(x.toPrecision(4))}${unit}`;
   };
-  const freqs = p.modes.map((mode) => mode.freq ?? mode.frequency ?? mode.f).filter((f) => typeof f === "number");
+  const freqs = p.modes.map((mode) => mode.frequency);
   const rows = [
     ["kind", p.kind],
-    ["modes", freqs.length ? `${p.modes.length}, ${fmt(Math.min(...freqs), " Hz")} to ${fmt(Math.max(...freqs), " Hz")}` : p.modes.length],
+    ["modes", `${freqs.length}, ${fmt(Math.min(...freqs), " Hz")} to ${fmt(Math.max(...freqs), " Hz")}`],
     ["hammer mass", fmt(p.hammer.mass, " kg")],
     ["contact stiffness k", fmt(p.hammer.stiffness, " N/m^α")],
     ["contact exponent α", fmt(p.hammer.alpha)],
