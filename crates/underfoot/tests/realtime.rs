@@ -85,6 +85,16 @@ fn rendering_never_allocates_or_frees() {
         equalizer: Some((weights, Realisation::LowDelay { taps: 512 })),
         limb: Some(butterworth::lowpass(2, Hz(1500.0), rate).unwrap()),
     };
+    // Preparing a bank (a modal fit per material) is most of this test's time, and it
+    // happens before the engine exists: once per model, cloned for each case.
+    let bank_for = |model| {
+        let voice = VoiceConfig {
+            model,
+            ..VoiceConfig::default()
+        };
+        MaterialBank::prepare(builtin(), rate, &voice, &step, weight).unwrap()
+    };
+    let (iir_bank, physical_bank) = (bank_for(SynthModel::Iir), bank_for(SynthModel::Physical));
     for (drive, model, compensated) in [
         ("impulse", SynthModel::Iir, false),
         ("force", SynthModel::Iir, false),
@@ -110,7 +120,10 @@ fn rendering_never_allocates_or_frees() {
             },
             ..EngineConfig::default()
         };
-        let bank = MaterialBank::prepare(builtin(), rate, &voice, &step, weight).unwrap();
+        let bank = match model {
+            SynthModel::Iir => iir_bank.clone(),
+            SynthModel::Physical => physical_bank.clone(),
+        };
         let slots: Vec<u16> = (0..4).map(|c| c as u16).collect();
         let replacement =
             PreparedMaterial::prepare(builtin().get("snow").unwrap(), rate, &voice).unwrap();

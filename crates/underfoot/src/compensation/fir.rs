@@ -45,7 +45,7 @@ use std::fmt;
 use std::sync::Arc;
 
 use num_complex::Complex;
-use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
+use underfoot_fft::{ComplexToReal, RealFftPlanner, RealToComplex};
 
 use super::CompensationError;
 

@@ -16,7 +16,7 @@
 //! extension adds no steep slopes whose phase would leak into the band.
 
 use num_complex::Complex64;
-use realfft::RealFftPlanner;
+use underfoot_fft::RealFftPlanner;
 
 use super::FitError;
 use crate::units::{Band, Hz, SampleRate};

@@ -36,7 +36,7 @@
 use std::sync::Arc;
 
 use num_complex::Complex64;
-use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
+use underfoot_fft::{ComplexToReal, RealFftPlanner, RealToComplex};
 
 /// A delay found by [`DelayEstimator::estimate`].
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -71,7 +71,7 @@
 //! [`AdaptConfig::min_frames`]: super::AdaptConfig::min_frames
 
 use num_complex::Complex64;
-use realfft::RealToComplex;
+use underfoot_fft::RealToComplex;
 
 use super::Adapter;
 use crate::units::Newtons;

@@ -43,7 +43,7 @@ pub mod update;
 use std::sync::Arc;
 
 use num_complex::Complex64;
-use realfft::{RealFftPlanner, RealToComplex};
+use underfoot_fft::{RealFftPlanner, RealToComplex};
 
 use super::CompensationError;
 use super::equalizer::SpectralWeights;

@@ -46,7 +46,7 @@
 use std::f64::consts::PI;
 
 use num_complex::Complex64;
-use realfft::RealFftPlanner;
+use underfoot_fft::RealFftPlanner;
 
 use super::excitation::{GUARD_OCTAVES, Sweep, rise};
 use super::response::FrequencyResponse;

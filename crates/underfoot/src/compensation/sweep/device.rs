@@ -6,7 +6,7 @@
 //! on the command line, are in [`crate::sim`].
 
 use num_complex::Complex64;
-use realfft::RealFftPlanner;
+use underfoot_fft::RealFftPlanner;
 
 use super::deconvolve::spectrum;
 use super::excitation::Sweep;

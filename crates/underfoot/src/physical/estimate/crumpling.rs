@@ -38,7 +38,7 @@
 //! largest within `±separation`. Impacts closer than `separation` (1 ms by default) count once.
 
 use num_complex::Complex64;
-use realfft::RealFftPlanner;
+use underfoot_fft::RealFftPlanner;
 
 use crate::signal::SignalError;
 use crate::signal::wavelet::{Wavelet, dwt};

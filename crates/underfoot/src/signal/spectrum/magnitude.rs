@@ -15,7 +15,7 @@ use std::fmt;
 use std::sync::Arc;
 
 use num_complex::Complex64;
-use realfft::{RealFftPlanner, RealToComplex};
+use underfoot_fft::{RealFftPlanner, RealToComplex};
 
 use crate::signal::SignalError;
 
