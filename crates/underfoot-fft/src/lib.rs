@@ -28,7 +28,7 @@
 
 use std::sync::Arc;
 
-pub use realfft::{ComplexToReal, FftNum, RealToComplex, num_complex};
+pub use realfft::{ComplexToReal, FftNum, RealToComplex};
 
 /// Plans real FFTs of any length, and keeps them: a second plan of the same length and
 /// direction is the first one again (realfft's planner, which this wraps).

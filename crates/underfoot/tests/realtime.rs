@@ -87,13 +87,12 @@ fn rendering_never_allocates_or_frees() {
     };
     // Preparing a bank (a modal fit per material) is most of this test's time, and it
     // happens before the engine exists: once per model, cloned for each case.
-    let bank_for = |model| {
-        let voice = VoiceConfig {
-            model,
-            ..VoiceConfig::default()
-        };
-        MaterialBank::prepare(builtin(), rate, &voice, &step, weight).unwrap()
+    let voice_for = |model| VoiceConfig {
+        model,
+        ..VoiceConfig::default()
     };
+    let bank_for =
+        |model| MaterialBank::prepare(builtin(), rate, &voice_for(model), &step, weight).unwrap();
     let (iir_bank, physical_bank) = (bank_for(SynthModel::Iir), bank_for(SynthModel::Physical));
     for (drive, model, compensated) in [
         ("impulse", SynthModel::Iir, false),
@@ -103,10 +102,7 @@ fn rendering_never_allocates_or_frees() {
         ("force-rate", SynthModel::Iir, true),
         ("force-rate", SynthModel::Physical, true),
     ] {
-        let voice = VoiceConfig {
-            model,
-            ..VoiceConfig::default()
-        };
+        let voice = voice_for(model);
         let config = EngineConfig {
             channels: 4,
             drive: drive.parse().unwrap(),
