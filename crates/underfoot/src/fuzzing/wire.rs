@@ -26,31 +26,16 @@ pub(super) fn run_osc(data: &[u8]) {
 
 #[cfg(feature = "osc")]
 pub(super) fn seeds_osc() -> Vec<Vec<u8>> {
+    use crate::io::osc::wire::{Arg, encode_bundle, encode_message};
     use crate::io::osc::{FORCE_ADDRESS, MATERIAL_ADDRESS, STEP_ADDRESS};
-    use rosc::{OscBundle, OscMessage, OscPacket, OscTime, OscType, encoder};
-    let message = |addr: &str, args: Vec<OscType>| {
-        OscPacket::Message(OscMessage {
-            addr: addr.to_owned(),
-            args,
-        })
-    };
-    let force = message(
+    let force = encode_message(
         FORCE_ADDRESS,
-        vec![OscType::Int(0), OscType::Float(300.0), OscType::Float(20.0)],
+        &[Arg::Int(0), Arg::Float(300.0), Arg::Float(20.0)],
     );
-    let step = message(STEP_ADDRESS, vec![OscType::Int(1), OscType::Float(0.8)]);
-    let material = message(
-        MATERIAL_ADDRESS,
-        vec![OscType::Int(0), OscType::String("sand".into())],
-    );
-    let bundle = OscPacket::Bundle(OscBundle {
-        timetag: OscTime::from((0, 1)),
-        content: vec![force.clone(), step.clone(), material.clone()],
-    });
-    [force, step, material, bundle]
-        .iter()
-        .map(|p| encoder::encode(p).expect("a small packet encodes"))
-        .collect()
+    let step = encode_message(STEP_ADDRESS, &[Arg::Int(1), Arg::Float(0.8)]);
+    let material = encode_message(MATERIAL_ADDRESS, &[Arg::Int(0), Arg::Str("sand")]);
+    let bundle = encode_bundle(&[force.clone(), step.clone(), material.clone()]);
+    vec![force, step, material, bundle]
 }
 
 // ---- serial frames (COBS, CRC-16) ----

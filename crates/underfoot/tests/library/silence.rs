@@ -145,7 +145,7 @@ fn physical_with_eq_and_user_compensation_is_silent_within_100_ms_of_lost_input(
 /// datagram would be, sent to a live engine, then nothing.
 #[test]
 fn one_osc_step_is_silent_within_100_ms_after_its_window() {
-    use rosc::{OscMessage, OscPacket, OscType, encoder};
+    use underfoot::io::osc::wire::{Arg, encode_message};
     use underfoot::io::osc::{OscDecoder, STEP_ADDRESS};
     for (model, compensated) in [
         (SynthModel::Iir, false),
@@ -164,11 +164,7 @@ fn one_osc_step_is_silent_within_100_ms_after_its_window() {
             ..EngineConfig::default()
         };
         let (mut ctl, mut eng) = engine::build(&config, bank, &[slot]).unwrap();
-        let datagram = encoder::encode(&OscPacket::Message(OscMessage {
-            addr: STEP_ADDRESS.to_string(),
-            args: vec![OscType::Int(0), OscType::Float(1.0)],
-        }))
-        .unwrap();
+        let datagram = encode_message(STEP_ADDRESS, &[Arg::Int(0), Arg::Float(1.0)]);
         let mut events = Vec::new();
         decoder.decode(&datagram, &mut |e| events.push(e.unwrap()));
         assert_eq!(events.len(), 1);

@@ -21,6 +21,9 @@
 //! messages applied in order as soon as they arrive: time tags are ignored, because the
 //! sender's clock is not the engine's and a step is wanted now, not at a tag's time.
 //!
+//! The wire format (OSC 1.0) is read and written by [`wire`], which also gives senders
+//! written in Rust, and the tests, [`wire::encode_message`] and [`wire::encode_bundle`].
+//!
 //! # What is rejected
 //!
 //! Counted in [`SourceStats::rejected`] and otherwise ignored: a packet that is not OSC (one
@@ -33,11 +36,13 @@ use std::io;
 use std::net::{SocketAddr, UdpSocket};
 use std::time::Duration;
 
-use rosc::{OscMessage, OscPacket, OscType};
-
 use super::{EventSource, IoError, SourceState, SourceStats};
 use crate::engine::Event;
 use crate::force::{MAX_SENSORS, SensorReading};
+
+pub mod wire;
+
+use wire::{Arg, Malformed, Message};
 
 /// The address of force readings.
 pub const FORCE_ADDRESS: &str = "/underfoot/force";
@@ -122,36 +127,25 @@ impl OscDecoder {
     /// Decodes one datagram; hands `out` each event, or why a message (or the whole packet)
     /// was rejected, in the packet's order.
     pub fn decode(&self, datagram: &[u8], out: &mut dyn FnMut(Result<Event, OscReject>)) {
-        // rosc recurses once per bundle level; check the nesting before handing it over.
-        if !nesting_within(datagram, MAX_BUNDLE_DEPTH) {
-            out(Err(OscReject::TooDeep));
-            return;
-        }
-        match rosc::decoder::decode_udp(datagram) {
-            Ok(([], packet)) => self.packet(&packet, out),
-            Ok(_) | Err(_) => out(Err(OscReject::NotOsc)),
-        }
-    }
-
-    fn packet(&self, packet: &OscPacket, out: &mut dyn FnMut(Result<Event, OscReject>)) {
-        match packet {
-            OscPacket::Message(m) => out(self.message(m)),
-            OscPacket::Bundle(b) => {
-                for p in &b.content {
-                    self.packet(p, out);
+        match wire::parse(datagram, MAX_BUNDLE_DEPTH) {
+            Ok(messages) => {
+                for m in &messages {
+                    out(self.message(m));
                 }
             }
+            Err(Malformed::Bytes) => out(Err(OscReject::NotOsc)),
+            Err(Malformed::TooDeep) => out(Err(OscReject::TooDeep)),
         }
     }
 
-    fn message(&self, m: &OscMessage) -> Result<Event, OscReject> {
+    fn message(&self, m: &Message<'_>) -> Result<Event, OscReject> {
         let Some((first, rest)) = m.args.split_first() else {
-            return Err(match m.addr.as_str() {
+            return Err(match m.address {
                 FORCE_ADDRESS | STEP_ADDRESS | MATERIAL_ADDRESS => OscReject::Arguments,
                 _ => OscReject::UnknownAddress,
             });
         };
-        match m.addr.as_str() {
+        match m.address {
             FORCE_ADDRESS => {
                 let channel = self.channel(first)?;
                 if rest.is_empty() || rest.len() > MAX_SENSORS {
@@ -182,7 +176,7 @@ impl OscDecoder {
             }
             MATERIAL_ADDRESS => {
                 let channel = self.channel(first)?;
-                let [OscType::String(name)] = rest else {
+                let [Arg::Str(name)] = rest else {
                     return Err(OscReject::Arguments);
                 };
                 let slot = self
@@ -197,12 +191,12 @@ impl OscDecoder {
         }
     }
 
-    fn channel(&self, arg: &OscType) -> Result<u16, OscReject> {
+    fn channel(&self, arg: &Arg<'_>) -> Result<u16, OscReject> {
         let ch = match *arg {
-            OscType::Int(i) => i64::from(i),
-            OscType::Long(l) => l,
-            OscType::Float(f) => whole(f64::from(f))?,
-            OscType::Double(d) => whole(d)?,
+            Arg::Int(i) => i64::from(i),
+            Arg::Long(l) => l,
+            Arg::Float(f) => whole(f64::from(f))?,
+            Arg::Double(d) => whole(d)?,
             _ => return Err(OscReject::Arguments),
         };
         match usize::try_from(ch) {
@@ -225,39 +219,14 @@ fn whole(x: f64) -> Result<i64, OscReject> {
 
 /// Any numeric argument as `f32`; out-of-range values become infinite and are caught by the
 /// finiteness checks.
-fn number(arg: &OscType) -> Result<f32, OscReject> {
+fn number(arg: &Arg<'_>) -> Result<f32, OscReject> {
     match *arg {
-        OscType::Int(i) => Ok(i as f32),
-        OscType::Long(l) => Ok(l as f32),
-        OscType::Float(f) => Ok(f),
-        OscType::Double(d) => Ok(d as f32),
+        Arg::Int(i) => Ok(i as f32),
+        Arg::Long(l) => Ok(l as f32),
+        Arg::Float(f) => Ok(f),
+        Arg::Double(d) => Ok(d as f32),
         _ => Err(OscReject::Arguments),
     }
-}
-
-/// Whether bundles in `bytes` nest at most `levels` deep. Malformed bundles pass: rosc
-/// rejects them, and only their depth is this check's business.
-fn nesting_within(bytes: &[u8], levels: usize) -> bool {
-    const TAG: &[u8] = b"#bundle\0";
-    if !bytes.starts_with(TAG) {
-        return true;
-    }
-    let Some(levels) = levels.checked_sub(1) else {
-        return false;
-    };
-    // The tag, then an 8-byte time tag, then elements of a big-endian size and content.
-    let mut rest = bytes.get(TAG.len() + 8..).unwrap_or_default();
-    while let Some((size, after)) = rest.split_first_chunk::<4>() {
-        let size = u32::from_be_bytes(*size) as usize;
-        let Some(element) = after.get(..size) else {
-            return true;
-        };
-        if !nesting_within(element, levels) {
-            return false;
-        }
-        rest = &after[size..];
-    }
-    true
 }
 
 /// OSC over UDP as an [`EventSource`].
