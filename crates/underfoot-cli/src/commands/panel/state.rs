@@ -491,9 +491,20 @@ impl Observer for PanelObserver {
         let last = *first
             .last()
             .ok_or_else(|| anyhow::anyhow!("no material given"))?;
-        // Until the session's first status, each channel shows as silent.
+        let slots: Vec<u16> = (0..channels)
+            .map(|c| first.get(c).copied().unwrap_or(last))
+            .collect();
+        // Until the session's first status, each channel shows as silent, on the material
+        // it starts with (not as none: a client that reads the status as soon as the
+        // session runs sees what is playing).
         view.last = Some(Status {
-            channels: vec![ChannelLevels::default(); channels],
+            channels: slots
+                .iter()
+                .map(|&slot| ChannelLevels {
+                    slot: Some(slot),
+                    ..ChannelLevels::default()
+                })
+                .collect(),
             ..Status::default()
         });
         view.origin = setup.origin.clone();
@@ -502,11 +513,7 @@ impl Observer for PanelObserver {
         view.ceiling_db = setup.config.ceiling.0;
         setup.bank = MaterialBank::from_prepared(bank);
         setup.config.spare_slots = SPARE_SLOTS;
-        Ok(Some(
-            (0..channels)
-                .map(|c| first.get(c).copied().unwrap_or(last))
-                .collect(),
-        ))
+        Ok(Some(slots))
     }
 
     fn started(&mut self, session: &RunningSession, _setup: &Setup) {
