@@ -4,20 +4,14 @@ use proptest::prelude::*;
 use std::time::Instant;
 use wire::{encode_bundle, encode_message};
 
-/// An encoded packet (the encoder is checked against the specification's bytes in
-/// `wire`'s tests).
-type OscPacket = Vec<u8>;
-
-fn msg(addr: &str, args: Vec<Arg<'_>>) -> OscPacket {
+// Datagrams are built by `wire`'s encoder, which its own tests check against the
+// specification's bytes.
+fn msg(addr: &str, args: Vec<Arg<'_>>) -> Vec<u8> {
     encode_message(addr, &args)
 }
 
-fn bundle(content: Vec<OscPacket>) -> OscPacket {
+fn bundle(content: Vec<Vec<u8>>) -> Vec<u8> {
     encode_bundle(&content)
-}
-
-fn bytes(p: &OscPacket) -> Vec<u8> {
-    p.clone()
 }
 
 fn names() -> Vec<String> {
@@ -38,7 +32,7 @@ fn force(channel: u16, newtons: &[f32]) -> Event {
 }
 
 /// Good packets and the events they should make.
-fn good() -> Vec<(OscPacket, Vec<Event>)> {
+fn good() -> Vec<(Vec<u8>, Vec<Event>)> {
     use Arg::{Double, Float, Int, Long, Str};
     vec![
         (
@@ -91,7 +85,7 @@ fn good() -> Vec<(OscPacket, Vec<Event>)> {
     ]
 }
 
-fn nested(levels: usize) -> OscPacket {
+fn nested(levels: usize) -> Vec<u8> {
     let mut p = msg(STEP_ADDRESS, vec![Arg::Int(0)]);
     for _ in 0..levels {
         p = bundle(vec![p]);
@@ -104,7 +98,7 @@ fn malformed() -> Vec<(&'static str, Vec<u8>, OscReject)> {
     use Arg::{Float, Int, Str};
     let mut noise = SplitMix64::new(7);
     let random: Vec<u8> = (0..97).map(|_| noise.next_u64() as u8).collect();
-    let mut truncated = bytes(&msg(FORCE_ADDRESS, vec![Int(0), Float(1.0)]));
+    let mut truncated = msg(FORCE_ADDRESS, vec![Int(0), Float(1.0)]);
     truncated.truncate(truncated.len() - 3);
     vec![
         ("random bytes", random, OscReject::NotOsc),
@@ -112,78 +106,75 @@ fn malformed() -> Vec<(&'static str, Vec<u8>, OscReject)> {
         ("truncated", truncated, OscReject::NotOsc),
         (
             "unknown address",
-            bytes(&msg("/underfoot/jump", vec![Int(0)])),
+            msg("/underfoot/jump", vec![Int(0)]),
             OscReject::UnknownAddress,
         ),
         (
             "force as a string",
-            bytes(&msg(FORCE_ADDRESS, vec![Int(0), Str("heavy")])),
+            msg(FORCE_ADDRESS, vec![Int(0), Str("heavy")]),
             OscReject::Arguments,
         ),
         (
             "force without a value",
-            bytes(&msg(FORCE_ADDRESS, vec![Int(0)])),
+            msg(FORCE_ADDRESS, vec![Int(0)]),
             OscReject::Arguments,
         ),
         (
             "nine sensors",
-            bytes(&msg(
+            msg(
                 FORCE_ADDRESS,
                 std::iter::once(Int(0))
                     .chain(std::iter::repeat_n(Float(1.0), 9))
                     .collect(),
-            )),
+            ),
             OscReject::Arguments,
         ),
         (
             "channel as a string",
-            bytes(&msg(STEP_ADDRESS, vec![Str("0")])),
+            msg(STEP_ADDRESS, vec![Str("0")]),
             OscReject::Arguments,
         ),
         (
             "fractional channel",
-            bytes(&msg(STEP_ADDRESS, vec![Float(0.5)])),
+            msg(STEP_ADDRESS, vec![Float(0.5)]),
             OscReject::Arguments,
         ),
         (
             "channel too high",
-            bytes(&msg(STEP_ADDRESS, vec![Int(2)])),
+            msg(STEP_ADDRESS, vec![Int(2)]),
             OscReject::Channel(2),
         ),
         (
             "negative channel",
-            bytes(&msg(FORCE_ADDRESS, vec![Int(-1), Float(1.0)])),
+            msg(FORCE_ADDRESS, vec![Int(-1), Float(1.0)]),
             OscReject::Channel(-1),
         ),
         (
             "unknown material",
-            bytes(&msg(MATERIAL_ADDRESS, vec![Int(0), Str("lava")])),
+            msg(MATERIAL_ADDRESS, vec![Int(0), Str("lava")]),
             OscReject::UnknownMaterial,
         ),
         (
             "material as a slot number",
-            bytes(&msg(MATERIAL_ADDRESS, vec![Int(0), Int(1)])),
+            msg(MATERIAL_ADDRESS, vec![Int(0), Int(1)]),
             OscReject::Arguments,
         ),
         (
             "NaN force",
-            bytes(&msg(
-                FORCE_ADDRESS,
-                vec![Int(0), Float(1.0), Float(f32::NAN)],
-            )),
+            msg(FORCE_ADDRESS, vec![Int(0), Float(1.0), Float(f32::NAN)]),
             OscReject::Value,
         ),
         (
             "infinite force",
-            bytes(&msg(FORCE_ADDRESS, vec![Int(0), Arg::Double(1e300)])),
+            msg(FORCE_ADDRESS, vec![Int(0), Arg::Double(1e300)]),
             OscReject::Value,
         ),
         (
             "negative intensity",
-            bytes(&msg(STEP_ADDRESS, vec![Int(0), Float(-1.0)])),
+            msg(STEP_ADDRESS, vec![Int(0), Float(-1.0)]),
             OscReject::Value,
         ),
-        ("bundles too deep", bytes(&nested(20)), OscReject::TooDeep),
+        ("bundles too deep", nested(20), OscReject::TooDeep),
     ]
 }
 
@@ -191,14 +182,14 @@ fn malformed() -> Vec<(&'static str, Vec<u8>, OscReject)> {
 fn good_packets_make_the_right_events() {
     let d = OscDecoder::new(names(), 2).unwrap();
     for (packet, want) in good() {
-        let got = decoded(&d, &bytes(&packet));
+        let got = decoded(&d, &packet);
         assert_eq!(
             got,
             want.into_iter().map(Ok).collect::<Vec<_>>(),
             "{packet:?}"
         );
     }
-    assert_eq!(decoded(&d, &bytes(&nested(MAX_BUNDLE_DEPTH))).len(), 1);
+    assert_eq!(decoded(&d, &nested(MAX_BUNDLE_DEPTH)).len(), 1);
 }
 
 #[test]
@@ -212,11 +203,11 @@ fn malformed_packets_say_why() {
         msg(STEP_ADDRESS, vec![Arg::Int(5)]),
         msg(STEP_ADDRESS, vec![Arg::Int(1)]),
     ]);
-    let got = decoded(&d, &bytes(&mixed));
+    let got = decoded(&d, &mixed);
     assert_eq!(got[0], Err(OscReject::Channel(5)));
     assert!(got[1].is_ok());
     // Bytes after a message make the packet suspect.
-    let mut trailing = bytes(&msg(STEP_ADDRESS, vec![Arg::Int(1)]));
+    let mut trailing = msg(STEP_ADDRESS, vec![Arg::Int(1)]);
     trailing.extend([0, 0, 0, 0]);
     assert_eq!(decoded(&d, &trailing), vec![Err(OscReject::NotOsc)]);
 }
@@ -269,7 +260,7 @@ fn udp_round_trip() {
 
     let mut want = Vec::new();
     for (packet, events) in good() {
-        sender.send_to(&bytes(&packet), to).unwrap();
+        sender.send_to(&packet, to).unwrap();
         want.extend(events);
     }
     assert_eq!(receive(&mut source, want.len()), want);
@@ -281,7 +272,7 @@ fn udp_round_trip() {
         sender.send_to(datagram, to).unwrap();
     }
     let after = msg(STEP_ADDRESS, vec![Arg::Int(1), Arg::Float(0.25)]);
-    sender.send_to(&bytes(&after), to).unwrap();
+    sender.send_to(&after, to).unwrap();
     let got = receive(&mut source, 1);
     assert_eq!(
         got,
@@ -318,7 +309,7 @@ proptest! {
         cut in any::<usize>(),
     ) {
         let d = OscDecoder::new(names(), 2).unwrap();
-        let mut datagram = bytes(&good()[which].0);
+        let mut datagram = good().swap_remove(which).0;
         for (at, b) in edits {
             let n = datagram.len();
             datagram[at % n] = b;
