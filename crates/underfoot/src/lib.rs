@@ -15,7 +15,7 @@
 //! | 3 | [`limits`], [`atomic_file`], [`document`] | bounds on inputs; the output policy and atomic writes; the one versioned-document layer | |
 //! | 4 | [`recording`], [`force`] | decode WAV/FLAC/Ogg/CSV and find each heel strike; sensor readings, their calibration, force tracks, the gait, steps and the drive | [iir], [tile] |
 //! | 5 | [`fit`], [`compensation`], [`interface`] | IIR fits to a measured response (Levi, vector fitting, damped Gauss-Newton, order search), linear prediction; a device's response, the equalizer, the limb model, the table of users, online adaptation; the prosthetic-skin interface: insole force to servo positions | [iir], [tile], [limb] |
-//! | 6 | [`analysis`] | a material's measured response: conditioning, strikes, the RMS strike spectrum | [iir] |
+//! | 6 | [`analysis`], [`excitation`] | a material's measured response: conditioning, strikes, the RMS strike spectrum; a step measured in time; what drives a step, the heel impact and its train of micro-impacts, fitted from recordings and played on a clock the foot drives | [iir], [tile] |
 //! | 7 | [`physical`] | a hammer striking a surface of damped modes (Hunt-Crossley contact); aggregates as Poisson micro-impacts; parameters estimated from recordings | [iir], [tile] |
 //! | 8 | [`material`] | the material model, the versioned library file, the built-in presets, fit quality, the evaluation of renders | [iir] |
 //! | 9 | [`synthesis`] | a material's modes at the audio rate; the voice with its per-step perturbation | [iir] |
@@ -132,7 +132,7 @@
 //! let mut library = Library::new();
 //! library.upsert(model);
 //! let json = library.to_json();
-//! assert!(json.contains("underfoot.library/2"));
+//! assert!(json.contains("underfoot.library/3"));
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
@@ -193,6 +193,8 @@ pub mod compensation;
 pub mod document;
 #[cfg(feature = "std")]
 pub mod engine;
+#[cfg(feature = "std")]
+pub mod excitation;
 #[cfg(feature = "std")]
 pub mod export;
 #[cfg(feature = "std")]

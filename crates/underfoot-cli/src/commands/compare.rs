@@ -205,6 +205,7 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
         let grid: Vec<Hz> = model.fit.grid_hz.iter().map(|f| Hz(*f)).collect();
         let (curve, held_out) = score_render(
             physical,
+            &model.excitation_or_heel(),
             &cal,
             &grid,
             &model.fit.measured,

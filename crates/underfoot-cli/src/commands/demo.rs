@@ -10,9 +10,9 @@
 //!   material (log-spectral distance between the stretch, analysed like a recording, and
 //!   the response measured from the material's recordings).
 //!
-//! The output gain is chosen so that the loudest material's strongest step stays 3 dB
-//! under the limiter's ceiling: the recordings' levels are those of their microphones, and
-//! a limited walk would no longer have the materials' spectra.
+//! Every material plays at its library level (`underfoot::material::level`), which keeps a
+//! nominal step 3 dB under the default ceiling: the walk is not limited, so its stretches
+//! keep the materials' spectra.
 
 use std::path::PathBuf;
 
@@ -75,7 +75,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         "--steps {}: need 1 to 50",
         args.steps
     );
-    let mut setup = args.synth.setup(1)?;
+    let setup = args.synth.setup(1)?;
     let which = setup.origin.clone();
     emit(&format!(
         "Fit of the materials of {which} (cf. Table I)\n\n{}",
@@ -101,19 +101,6 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     )?;
     let [wav_out, force_out, json_out, spectrogram_out, spectra_out] =
         <[OutputFile; 5]>::try_from(outs).map_err(|_| anyhow::anyhow!("five outputs"))?;
-
-    // Level: the loudest material's strongest step 3 dB under the ceiling.
-    let loudest = setup
-        .bank
-        .materials()
-        .iter()
-        .map(|m| m.impulse_peak())
-        .fold(0.0f32, f32::max);
-    let strongest = setup.config.detector.max_intensity.min(1.3);
-    let headroom = setup.config.ceiling.0
-        - 3.0
-        - Decibels::from_amplitude(f64::from(loudest * strongest).max(1e-12)).0;
-    setup.config.gain = Decibels(setup.config.gain.0.min(headroom));
 
     let gait = if args.gait.is_empty() {
         GaitConfig::default()

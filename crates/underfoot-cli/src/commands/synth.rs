@@ -13,11 +13,19 @@ use underfoot::engine::{EngineConfig, MaterialBank};
 use underfoot::force::drive::DriveKind;
 use underfoot::force::gait::nominal_step;
 use underfoot::material::Library;
-use underfoot::synthesis::{SynthModel, VoiceConfig};
+use underfoot::synthesis::{ExcitationChoice, SynthModel, VoiceConfig};
 use underfoot::units::{Decibels, Hz, Newtons, SampleRate};
 
 use crate::commands::calibrate::{UserArg, parse_user};
 use crate::commands::library::open;
+
+fn parse_excitation(s: &str) -> Result<ExcitationChoice, String> {
+    match s {
+        "fitted" => Ok(ExcitationChoice::Fitted),
+        "heel" => Ok(ExcitationChoice::Heel),
+        _ => Err(format!("{s:?}: expected fitted or heel")),
+    }
+}
 
 fn parse_model(s: &str) -> Result<SynthModel, String> {
     match s {
@@ -50,7 +58,7 @@ pub struct SynthArgs {
     /// Output sample rate.
     #[arg(long, default_value_t = 48_000, value_name = "HZ")]
     pub rate: u32,
-    /// Output gain before the limiter, in dB.
+    /// Output gain before the limiter, in dB, on top of each material's playback level.
     #[arg(
         long = "gain-db",
         default_value_t = 0.0,
@@ -59,12 +67,20 @@ pub struct SynthArgs {
         value_parser = parse_gain_db
     )]
     pub gain_db: f64,
-    /// Limiter ceiling in dB relative to full scale (at most 0).
-    #[arg(long = "ceiling-db", default_value_t = -6.0, value_name = "DB", allow_hyphen_values = true)]
+    /// Limiter ceiling in dB relative to full scale (at most 0). Materials are levelled
+    /// so that a nominal step peaks 3 dB under the default.
+    #[arg(long = "ceiling-db", default_value_t = underfoot::safety::DEFAULT_CEILING.0, value_name = "DB", allow_hyphen_values = true)]
     pub ceiling_db: f64,
-    /// Standard deviation of the per-step numerator perturbation (paper: 0.01).
-    #[arg(long, default_value_t = 0.01, value_name = "SIGMA")]
-    pub perturbation: f32,
+    /// Standard deviation of the per-step numerator perturbation. Default: each
+    /// material's own, sized from how much its recorded steps differ; 0.01 is the IIR
+    /// paper's 1%.
+    #[arg(long, value_name = "SIGMA")]
+    pub perturbation: Option<f32>,
+    /// What drives each step: fitted (the heel impact and its train of micro-impacts,
+    /// fitted from the material's recordings) or heel (one impulse per step, the IIR
+    /// paper's).
+    #[arg(long, default_value = "fitted", value_name = "KIND", value_parser = parse_excitation)]
+    pub excitation: ExcitationChoice,
     /// Seed of the perturbation (the same seed gives the same output).
     #[arg(long, default_value_t = 0x5EED, value_name = "N")]
     pub seed: u64,
@@ -160,9 +176,16 @@ impl SynthArgs {
         anyhow::ensure!(!library.materials.is_empty(), "{origin} has no materials");
         let rate = SampleRate(self.rate);
         let weight = Newtons::weight_of(self.weight_kg);
+        if let Some(sigma) = self.perturbation {
+            anyhow::ensure!(
+                sigma.is_finite() && (0.0..=0.5).contains(&sigma),
+                "--perturbation {sigma}: need 0 to 0.5"
+            );
+        }
         let voice = VoiceConfig {
             lowpass_order: self.lowpass_order,
             model: self.model,
+            excitation: self.excitation,
             ..VoiceConfig::default()
         };
         let step = nominal_step(self.weight_kg, 1.8, rate.hz());

@@ -90,6 +90,9 @@ pub fn model(name: &str, strikes: usize) -> MaterialModel {
             sha256: "0f".repeat(32),
         }],
         physical: None,
+        excitation: None,
+        time: None,
+        level_db: 0.0,
     }
 }
 

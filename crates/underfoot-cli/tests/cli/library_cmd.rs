@@ -104,19 +104,19 @@ fn broken_libraries_fail_with_a_clear_message_and_stay_unchanged() {
         lib.materials[1].filter = FilterCoefficients::from_sos(&sos);
         lib.to_json()
     };
-    let v3 = library(&["gravel"])
+    let v4 = library(&["gravel"])
         .to_json()
-        .replace("underfoot.library/2", "underfoot.library/3");
+        .replace("underfoot.library/3", "underfoot.library/4");
     let cases: [(&str, String, &[&str]); 3] = [
         (
             "malformed",
-            "{\n  \"format\": \"underfoot.library/2\",\n  \"materials\": [\n".into(),
+            "{\n  \"format\": \"underfoot.library/3\",\n  \"materials\": [\n".into(),
             &["line", "column"],
         ),
         (
             "unknown version",
-            v3,
-            &["\"underfoot.library/3\"", "underfoot.library/2"],
+            v4,
+            &["\"underfoot.library/4\"", "underfoot.library/3"],
         ),
         ("unstable", unstable, &["\"ice\"", "unstable", "1.01"]),
     ];

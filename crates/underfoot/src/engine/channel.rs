@@ -1,6 +1,15 @@
 //! One channel: force in, a material's voice, vibration out.
+//!
+//! A step detected in the force (or announced) starts the material's excitation
+//! ([`crate::excitation::Generator`]): its heel impulse at the strike's sample, then its
+//! train on a clock driven by `|dF/dt|` of the same interpolated force the drives see. The
+//! IIR voice filters that excitation (the `impulse` drive) and the physical model is struck
+//! by it, whatever the drive; the `force` and `force-rate` drives feed the voice the force
+//! itself instead.
 
 use super::{EngineConfig, Telemetry};
+use crate::excitation::clock::speed_per_newton_per_second;
+use crate::excitation::{Generator, Tables};
 use crate::force::SensorReading;
 use crate::force::condition::ForceConditioner;
 use crate::force::drive::{DriveKind, Polarity};
@@ -21,7 +30,15 @@ pub(super) struct Channel {
     polarity: Polarity,
     weight: f64,
     rate_hz: f64,
+    /// The perturbation every material gets, when the configuration fixes one.
+    sigma_override: Option<f32>,
+    /// The current material's perturbation.
     sigma: f32,
+    /// The step's excitation, and the current material's tables for it.
+    excitation: Generator,
+    tables: Tables,
+    /// `|ΔF|` per sample (N) to the excitation clock's speed: `f_s / (W ḡ)`.
+    speed_per_newton: f32,
     /// The voice playing now, and the one fading out after a material change.
     voices: [Voice; 2],
     /// The same for materials played by their physical model (when the bank has them),
@@ -38,8 +55,8 @@ pub(super) struct Channel {
     /// The largest absolute drive sample of the last block rendered, for the meter.
     drive_peak: f32,
     drive_buf: Vec<f32>,
-    /// The loading rate `v_F` (N/s) of the block, for physical models.
-    loading_buf: Vec<f32>,
+    /// The excitation of the block: the drive of the `impulse` voice and of physical models.
+    excitation_buf: Vec<f32>,
     out_a: Vec<f32>,
     out_b: Vec<f32>,
 }
@@ -59,7 +76,14 @@ impl Channel {
             polarity: config.polarity,
             weight: config.nominal_weight.0.max(1e-9),
             rate_hz: rate.hz(),
-            sigma: config.perturbation,
+            sigma_override: config.perturbation,
+            sigma: config.perturbation.unwrap_or(0.0),
+            excitation: Generator::new(
+                !config.seed ^ (index as u64).wrapping_mul(0xD1B5_4A32_D192_ED03),
+            ),
+            tables: Tables::heel_only(rate),
+            speed_per_newton: (speed_per_newton_per_second(config.nominal_weight) * rate.hz())
+                as f32,
             voices: [Voice::new(), Voice::new()],
             grounds: ground.map(|g| [g.clone(), g.clone()]),
             physical: [false; 2],
@@ -72,7 +96,7 @@ impl Channel {
             last_drive: 0.0,
             drive_peak: 0.0,
             drive_buf: vec![0.0; config.max_block],
-            loading_buf: vec![0.0; config.max_block],
+            excitation_buf: vec![0.0; config.max_block],
             out_a: vec![0.0; config.max_block],
             out_b: vec![0.0; config.max_block],
         }
@@ -98,6 +122,8 @@ impl Channel {
             return;
         }
         let next = 1 - self.current;
+        self.tables.clone_from(&material.excitation);
+        self.sigma = self.sigma_override.unwrap_or(material.perturbation);
         match (&material.ground, &mut self.grounds) {
             (Some(model), Some(grounds)) => {
                 grounds[next].assign_from(model);
@@ -148,30 +174,27 @@ impl Channel {
             telemetry.count_rejected();
             return false;
         }
-        if let (true, Some(grounds)) = (self.physical[self.current], &mut self.grounds) {
-            // No force will follow: the physical model plays a nominal step itself.
-            telemetry.count_strike(self.index);
-            grounds[self.current].step(intensity.clamp(0.0, 4.0));
-            return true;
-        }
-        self.strike(intensity.clamp(0.0, 4.0), telemetry);
+        let intensity = intensity.clamp(0.0, 4.0);
+        telemetry.count_strike(self.index);
+        self.perturb();
+        // No force will follow: the excitation's clock runs at the nominal pace.
+        self.excitation.step(&self.tables, intensity);
         // A step event is an impulse whatever the drive: there is no force to follow.
         if self.drive != DriveKind::Impulse {
-            self.pending_impulse += intensity.clamp(0.0, 4.0);
+            self.pending_impulse += intensity;
         }
         true
     }
 
     fn strike(&mut self, intensity: f32, telemetry: &Telemetry) {
         telemetry.count_strike(self.index);
-        if let (true, Some(grounds)) = (self.physical[self.current], &mut self.grounds) {
-            grounds[self.current].strike(intensity);
-        }
+        self.perturb();
+        self.excitation.strike(&self.tables, intensity);
+    }
+
+    fn perturb(&mut self) {
         for v in &mut self.voices {
             v.perturb(&mut self.rng, self.sigma);
-        }
-        if self.drive == DriveKind::Impulse {
-            self.pending_impulse += intensity;
         }
     }
 
@@ -181,23 +204,21 @@ impl Channel {
     pub(super) fn render(&mut self, out: &mut [f32]) -> u32 {
         let n = out.len().min(self.drive_buf.len());
         let drive = &mut self.drive_buf[..n];
-        let loading = &mut self.loading_buf[..n];
-        for (x, v) in drive.iter_mut().zip(loading.iter_mut()) {
+        let excitation = &mut self.excitation_buf[..n];
+        for (x, e) in drive.iter_mut().zip(excitation.iter_mut()) {
             let total = self.conditioner.next_total();
-            *v = DriveKind::ForceRate.sample(
-                f64::from(total),
-                f64::from(self.previous_total),
-                self.rate_hz,
-                self.polarity,
-                1.0,
-            ) as f32;
-            *x = self.drive.sample(
-                f64::from(total),
-                f64::from(self.previous_total),
-                self.rate_hz,
-                self.polarity,
-                self.weight,
-            ) as f32;
+            let speed = (total - self.previous_total).abs() * self.speed_per_newton;
+            *e = self.excitation.next(&self.tables, speed);
+            *x = match self.drive {
+                DriveKind::Impulse => *e,
+                _ => self.drive.sample(
+                    f64::from(total),
+                    f64::from(self.previous_total),
+                    self.rate_hz,
+                    self.polarity,
+                    self.weight,
+                ) as f32,
+            };
             self.previous_total = total;
         }
         if let Some(last) = drive.last() {
@@ -219,7 +240,7 @@ impl Channel {
             out[..n].fill(0.0);
         } else {
             let (cur, old) = (self.current, 1 - self.current);
-            let loading = &self.loading_buf[..n];
+            let excitation = &self.excitation_buf[..n];
             let [ground_a, ground_b] = match &mut self.grounds {
                 Some([a, b]) => [Some(a), Some(b)],
                 None => [None, None],
@@ -239,7 +260,7 @@ impl Channel {
                 voice_cur,
                 ground_cur.filter(|_| self.physical[cur]),
                 drive,
-                loading,
+                excitation,
                 &mut self.out_a[..n],
             );
             if self.fade_left > 0 {
@@ -247,7 +268,7 @@ impl Channel {
                     voice_old,
                     ground_old.filter(|_| self.physical[old]),
                     drive,
-                    loading,
+                    excitation,
                     &mut self.out_b[..n],
                 );
                 for i in 0..n {
@@ -274,16 +295,17 @@ impl Channel {
     }
 }
 
-/// One slot's output: its physical model when it plays one, else its voice.
+/// One slot's output: its physical model, struck by the excitation, when it plays one,
+/// else its voice on the drive.
 fn play(
     voice: &mut Voice,
     ground: Option<&mut Ground>,
     drive: &[f32],
-    loading: &[f32],
+    excitation: &[f32],
     out: &mut [f32],
 ) -> u32 {
     match ground {
-        Some(g) => g.process(loading, out),
+        Some(g) => g.process(excitation, out),
         None => voice.process(drive, out),
     }
 }

@@ -21,9 +21,13 @@ pub struct EngineConfig {
     pub drive: DriveKind,
     /// Which half of `dF/dt` the `ForceRate` drive keeps.
     pub polarity: Polarity,
-    /// Standard deviation of the per-step numerator perturbation (default 0.01).
-    pub perturbation: f32,
-    /// Seed of the perturbation; channel `c` uses a stream derived from it.
+    /// Standard deviation of the per-step numerator perturbation: `None` (the default) for
+    /// each material's own, sized from its recordings' spread between steps
+    /// ([`PreparedMaterial::perturbation`](crate::synthesis::PreparedMaterial::perturbation)),
+    /// `Some(0.01)` for the IIR paper's 1% on every material.
+    pub perturbation: Option<f32>,
+    /// Seed of the perturbation and of the excitation's trains; channel `c` uses streams
+    /// derived from it.
     pub seed: u64,
     /// Nominal body weight the force drives normalise by (default 70 kg).
     pub nominal_weight: Newtons,
@@ -65,7 +69,7 @@ impl Default for EngineConfig {
             max_block: 512,
             drive: DriveKind::Impulse,
             polarity: Polarity::Loading,
-            perturbation: 0.01,
+            perturbation: None,
             seed: 0x5EED,
             nominal_weight: Newtons::weight_of(70.0),
             sensor_rate: Hz(500.0),
@@ -73,7 +77,7 @@ impl Default for EngineConfig {
             detector: DetectorConfig::default(),
             watchdog: WatchdogConfig::default(),
             gain: Decibels(0.0),
-            ceiling: Decibels(-6.0),
+            ceiling: crate::safety::DEFAULT_CEILING,
             release: Seconds(0.05),
             crossfade: Seconds(0.02),
             fade: Seconds(0.01),

@@ -135,10 +135,11 @@ pub fn build(
             config.sensor_latency
         )));
     }
-    if !(config.perturbation.is_finite() && (0.0..=0.5).contains(&config.perturbation)) {
+    if let Some(sigma) = config.perturbation
+        && !(sigma.is_finite() && (0.0..=0.5).contains(&sigma))
+    {
         return Err(EngineError::InvalidConfig(format!(
-            "perturbation {} must be in 0..0.5",
-            config.perturbation
+            "perturbation {sigma} must be in 0..0.5"
         )));
     }
     if let Some(bad) = initial

@@ -6,11 +6,19 @@
 //! model magnitudes on 96 log-spaced frequencies of the band and both metrics there, the
 //! decay limit the search kept to, and the worst deviation found on a dense grid
 //! ([`worst_deviation`](crate::fit::metrics::worst_deviation)).
+//!
+//! Then, for the filter found: the excitation ([`crate::excitation::estimate()`]: the
+//! heel, the train, the recordings' steps measured in time), and the physical model
+//! struck by it. Last, the playback level
+//! ([`super::level`]) from the nominal step's peak through the filter (or the physical
+//! model, if louder).
 
 use std::time::Instant;
 
 use crate::analysis::{AnalysisConfig, AnalysisError, MeasuredResponse, measure};
+use crate::excitation::{EstimateConfig as ExcitationConfig, ExcitationModel};
 use crate::fit::{FitConfig, FitError, MetricGrid, Metrics, Target, fit};
+use crate::material::level::{level_for, nominal_peak};
 use crate::material::library::{NameError, validate_name};
 use crate::material::quality::{self, QualityConfig, QualityError, RecordingsQuality};
 use crate::material::{FilterCoefficients, FitRecord, MaterialModel, SourceFile};
@@ -27,6 +35,9 @@ pub struct BuildConfig {
     pub analysis: AnalysisConfig,
     /// From the measured response to a filter.
     pub fit: FitConfig,
+    /// The excitation's estimation from the same recordings (its `analysis` is replaced by
+    /// the one above); `None` for one impulse per step.
+    pub excitation: Option<ExcitationConfig>,
     /// The physical model's calibration from the same recordings (its `analysis` is
     /// replaced by the one above); `None` to skip it.
     pub physical: Option<EstimateConfig>,
@@ -39,6 +50,7 @@ impl Default for BuildConfig {
         Self {
             analysis: AnalysisConfig::default(),
             fit: FitConfig::default(),
+            excitation: Some(ExcitationConfig::default()),
             physical: Some(EstimateConfig::default()),
             quality: QualityConfig::default(),
         }
@@ -79,6 +91,28 @@ pub enum Progress {
     PhysicalFailed {
         /// Why.
         reason: String,
+    },
+    /// The excitation is fitted: the recordings' steps in time, and a render of it.
+    Excitation {
+        /// The heel impact's share of a step's energy.
+        heel: f64,
+        /// The recordings' median duration (ms) and micro-event count.
+        recorded: (f64, f64),
+        /// The calibration render's.
+        rendered: (f64, f64),
+    },
+    /// The excitation could not be fitted; the material plays one impulse per step.
+    ExcitationFailed {
+        /// Why.
+        reason: String,
+    },
+    /// The playback level was set.
+    Level {
+        /// The level, dB re the recording.
+        level_db: f64,
+        /// Whether the material had to be turned down below the common reference to keep
+        /// its nominal step 3 dB under the default ceiling.
+        turned_down: bool,
     },
 }
 
@@ -128,6 +162,9 @@ pub struct BuildReport {
     pub levi: Option<Metrics>,
     /// Every order tried: order, metrics, method.
     pub trials: Vec<(usize, Metrics, String)>,
+    /// The excitation's estimation: the recordings' steps in time and the calibration
+    /// render's (`None` when it was not run or failed).
+    pub excitation: Option<crate::excitation::estimate::Estimate>,
 }
 
 /// As [`build_material`], also returning the [`BuildReport`].
@@ -170,29 +207,13 @@ pub fn build_material_with_report(
         crate::fit::OrderChoice::Auto { max } => max,
         crate::fit::OrderChoice::Fixed(n) => n,
     };
-    // The physical calibration needs only the measurement: it runs beside the IIR fit.
-    let calibration = cfg.physical.as_ref().map(|cal| EstimateConfig {
-        analysis: a.clone(),
-        ..cal.clone()
-    });
-    let (outcome, physical) = std::thread::scope(|scope| {
-        let physical = calibration
-            .as_ref()
-            .map(|cal| scope.spawn(|| estimate_measured(recordings, &measured, cal)));
-        let outcome = fit(&target, &grid, &cfg.fit, &mut |f| {
-            progress(&Progress::OrderTried {
-                order: f.order,
-                max_order,
-                lsd_db: f.metrics.lsd_db,
-                nrmse: f.metrics.nrmse,
-            });
+    let outcome = fit(&target, &grid, &cfg.fit, &mut |f| {
+        progress(&Progress::OrderTried {
+            order: f.order,
+            max_order,
+            lsd_db: f.metrics.lsd_db,
+            nrmse: f.metrics.nrmse,
         });
-        let physical = physical.map(|h| {
-            h.join()
-                .map_err(|_| "the physical calibration did not finish".to_string())
-                .and_then(|r| r.map_err(|e| e.to_string()))
-        });
-        (outcome, physical)
     });
     let outcome = outcome?;
     let best = outcome.best;
@@ -229,9 +250,51 @@ pub fn build_material_with_report(
             })
             .collect(),
         physical: None,
+        excitation: None,
+        time: None,
+        level_db: 0.0,
     };
     let mut model = model;
     quality::check_fit(model.order, &mut model.fit, &cfg.quality)?;
+    // The excitation is fitted for the filter it will be played through; the physical
+    // model is struck by it.
+    let excitation = cfg.excitation.as_ref().map(|e| {
+        let e = ExcitationConfig {
+            analysis: a.clone(),
+            ..e.clone()
+        };
+        crate::excitation::estimate(recordings, &measured, &best.sos, &e)
+    });
+    let played = match &excitation {
+        Some(Ok(e)) => e.model.clone(),
+        _ => ExcitationModel::heel_only(),
+    };
+    let physical = cfg.physical.as_ref().map(|cal| {
+        let cal = EstimateConfig {
+            analysis: a.clone(),
+            ..cal.clone()
+        };
+        estimate_measured(recordings, &measured, &played, &cal).map_err(|e| e.to_string())
+    });
+    let estimate = match excitation {
+        Some(Ok(e)) => {
+            progress(&Progress::Excitation {
+                heel: e.model.heel,
+                recorded: (e.recorded.duration_ms, e.recorded.events),
+                rendered: (e.rendered.duration_ms, e.rendered.events),
+            });
+            model.excitation = Some(e.model.clone());
+            model.time = Some(e.recorded.clone());
+            Some(e)
+        }
+        Some(Err(reason)) => {
+            progress(&Progress::ExcitationFailed {
+                reason: reason.to_string(),
+            });
+            None
+        }
+        None => None,
+    };
     match physical {
         Some(Ok(p)) => {
             progress(&Progress::Physical {
@@ -243,12 +306,24 @@ pub fn build_material_with_report(
         Some(Err(reason)) => progress(&Progress::PhysicalFailed { reason }),
         None => {}
     }
+    // The level: the nominal step's peak through the filter, or the physical model's if
+    // louder (both at the recorded level).
+    let iir_peak = nominal_peak(&best.sos, a.rate, &model.excitation_or_heel()).unwrap_or(0.0);
+    let physical_peak = model.physical.as_ref().map_or(0.0, |p| p.record.peak);
+    let peak = iir_peak.max(physical_peak);
+    let level = level_for(peak);
+    model.level_db = level.0;
+    progress(&Progress::Level {
+        level_db: level.0,
+        turned_down: level.0 < super::level::REFERENCE.0,
+    });
     Ok((
         model,
         BuildReport {
             measured,
             levi: best.levi,
             trials: outcome.trials,
+            excitation: estimate,
         },
     ))
 }

@@ -2,6 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::analysis::steps::StepSummary;
+use crate::excitation::ExcitationModel;
 use crate::fit::metrics::WorstDeviation;
 use crate::signal::{Biquad, Sos};
 use crate::units::{Band, SampleRate, Seconds};
@@ -27,6 +29,19 @@ pub struct MaterialModel {
     /// (`--model physical`). Files written before it existed simply lack it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub physical: Option<crate::physical::PhysicalModel>,
+    /// What drives a step: the heel impact and its train of micro-impacts, fitted from the
+    /// recordings ([`crate::excitation`]). Absent in files before format 3, whose
+    /// materials play one impulse per step.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub excitation: Option<ExcitationModel>,
+    /// The recordings' steps measured in time (duration, micro-events, crest factor,
+    /// decay, spread between steps), for comparison with what plays. Format 3.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time: Option<StepSummary>,
+    /// The playback level relative to the recorded level, in dB
+    /// ([`super::level`]): 0 in files before format 3.
+    #[serde(default)]
+    pub level_db: f64,
 }
 
 /// A filter both as second-order sections (what runs) and expanded (for interchange).
@@ -122,6 +137,15 @@ pub struct SourceFile {
 }
 
 impl MaterialModel {
+    /// The material's excitation, or one impulse per step for a material fitted before
+    /// the excitation existed.
+    #[must_use]
+    pub fn excitation_or_heel(&self) -> ExcitationModel {
+        self.excitation
+            .clone()
+            .unwrap_or_else(ExcitationModel::heel_only)
+    }
+
     /// The filter as a runnable cascade.
     ///
     /// A model that passed [`Library`](super::Library) validation always has one; `None`

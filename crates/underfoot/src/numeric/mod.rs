@@ -24,4 +24,4 @@ pub use bilinear::{bilinear, prewarp_constant};
 pub use dtft::dtft;
 pub use lstsq::{NumericalError, solve_scaled, svd};
 pub use roots::roots;
-pub use stats::{median, percentile};
+pub use stats::{median, normal_quantile, percentile};

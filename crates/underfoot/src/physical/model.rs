@@ -34,7 +34,8 @@ impl GroundKind {
 }
 
 /// A physical model estimated from recordings ([`mod@super::estimate`]): the surface's
-/// modes, the hammer that strikes it, and how force drives the strikes.
+/// modes and the hammer that strikes it. What strikes it, and when, is the material's
+/// excitation ([`crate::excitation`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PhysicalModel {
     /// One impact per step, or a stream of micro-impacts.
@@ -50,8 +51,6 @@ pub struct PhysicalModel {
     /// in library files.
     #[serde(rename = "voices")]
     pub impacts_in_flight: usize,
-    /// The control mapping `N(t) = α v_F(t)`: events per newton of loading (aggregates).
-    pub events_per_newton: f64,
     /// Output units per m/s of surface velocity: the recorded level.
     pub output_gain: f64,
     /// How the estimation went.
@@ -77,6 +76,11 @@ pub struct PhysicalRecord {
     pub nrmse: f64,
     /// Log-spectral distance of `model` against the measurement, in dB.
     pub lsd_db: f64,
+    /// The largest sample of that render at the model's output gain: a nominal step's
+    /// peak at the recorded level, which sets the material's playback level when it is
+    /// louder than the filter's ([`crate::material::level`]). 0 in files before format 3.
+    #[serde(default)]
+    pub peak: f64,
 }
 
 impl PhysicalModel {
@@ -148,13 +152,6 @@ impl PhysicalModel {
         if self.impacts_in_flight == 0 || self.impacts_in_flight > MAX_IMPACTS_IN_FLIGHT {
             // Named as in the file.
             return Err(invalid("voices", self.impacts_in_flight as f64, "1 to 8"));
-        }
-        if !(self.events_per_newton.is_finite() && self.events_per_newton >= 0.0) {
-            return Err(invalid(
-                "events_per_newton",
-                self.events_per_newton,
-                "non-negative and finite",
-            ));
         }
         if !positive(self.output_gain) {
             return Err(invalid(

@@ -64,6 +64,10 @@ pub fn quantize(x: f32, bits: u32) -> i32 {
 /// on. A later step restarts the window.
 pub const STEP_WINDOW: Seconds = Seconds(0.5);
 
+/// The limiter's ceiling unless a user sets another: 6 dB under full scale. A material's
+/// playback level keeps its nominal step under it (`material::level`).
+pub const DEFAULT_CEILING: Decibels = Decibels(-6.0);
+
 /// A peak limiter with an absolute ceiling.
 ///
 /// The gain `g` follows `min(1, c / |x|)` down at once and recovers towards 1 with time

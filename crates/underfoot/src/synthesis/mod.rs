@@ -8,4 +8,4 @@ pub mod modal;
 pub mod voice;
 
 pub use modal::{ModalError, ModalFilter, PoleResidue};
-pub use voice::{PreparedMaterial, SynthModel, Voice, VoiceConfig, VoiceError};
+pub use voice::{ExcitationChoice, PreparedMaterial, SynthModel, Voice, VoiceConfig, VoiceError};

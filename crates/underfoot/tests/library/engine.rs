@@ -430,6 +430,9 @@ fn the_limiter_holds_against_a_pathological_filter() {
         },
         sources: vec![],
         physical: None,
+        excitation: None,
+        time: None,
+        level_db: 0.0,
     };
     let prepared = PreparedMaterial::prepare(&model, RATE, &VoiceConfig::default()).unwrap();
     assert_eq!(prepared.limited_modes, 1, "its decay is limited");

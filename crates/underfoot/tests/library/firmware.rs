@@ -424,6 +424,9 @@ fn small_library() -> underfoot::material::Library {
         },
         sources: Vec::new(),
         physical: None,
+        excitation: None,
+        time: None,
+        level_db: 0.0,
     });
     library
 }

@@ -6,9 +6,10 @@
 
 use crate::common;
 
+use underfoot::excitation::{ExcitationModel, Generator, Tables};
 use underfoot::material::builtin::builtin;
 use underfoot::material::library::Library;
-use underfoot::physical::estimate::{fit_rate_mapping, hammer_for, held_out_seed, score_render};
+use underfoot::physical::estimate::{hammer_for, held_out_seed, score_render};
 use underfoot::physical::{
     EstimateConfig, Ground, GroundKind, Impact, KindChoice, Surface, estimate,
 };
@@ -29,15 +30,20 @@ fn calibrate_then_synthesise_every_real_material_within_3_db() {
             .iter()
             .map(|f| recording::read(f, None).expect("readable recording"))
             .collect();
-        let model = estimate(&recordings, &cfg).expect("estimates");
+        // Struck by the material's excitation, as the fit estimates it.
+        let excitation = builtin()
+            .get(&name)
+            .expect("a built-in of each shared material")
+            .excitation_or_heel();
+        let model = estimate(&recordings, &excitation, &cfg).expect("estimates");
         let grid = cfg.analysis.band.log_grid(96);
         let measured = underfoot::analysis::measure(&recordings, &cfg.analysis)
             .expect("measurable")
             .on_grid(&grid);
         // The recorded figure is the estimation render's, at the stored gain: scoring
         // that render again gives it back.
-        let (_, again) =
-            score_render(&model, &cfg, &grid, &measured, cfg.seed).expect("render analyses");
+        let (_, again) = score_render(&model, &excitation, &cfg, &grid, &measured, cfg.seed)
+            .expect("render analyses");
         assert!(
             (again.lsd_db - model.record.lsd_db).abs() < 0.01,
             "{name}: recorded {:.3} dB, scored again {:.3} dB",
@@ -45,8 +51,15 @@ fn calibrate_then_synthesise_every_real_material_within_3_db() {
             again.lsd_db
         );
         // Score a render the estimation has not seen (another seed).
-        let (_, held_out) = score_render(&model, &cfg, &grid, &measured, held_out_seed(&cfg))
-            .expect("render analyses");
+        let (_, held_out) = score_render(
+            &model,
+            &excitation,
+            &cfg,
+            &grid,
+            &measured,
+            held_out_seed(&cfg),
+        )
+        .expect("render analyses");
         let lsd = held_out.lsd_db;
         eprintln!(
             "{name}: {} with {} modes, LSD {lsd:.2} dB held out (estimation {:.2} dB)",
@@ -94,7 +107,7 @@ fn a_struck_floor_is_a_solid_with_its_modes_and_its_spectrum() {
     let truth = [(62.0, 0.06, 1.0), (145.0, 0.04, 0.6), (410.0, 0.025, 0.4)];
     let recordings: Vec<Recording> = (0..3).map(|s| struck_floor(&truth, 2, s)).collect();
     let cfg = EstimateConfig::default();
-    let model = estimate(&recordings, &cfg).expect("estimates");
+    let model = estimate(&recordings, &ExcitationModel::heel_only(), &cfg).expect("estimates");
     assert_eq!(model.kind, GroundKind::Solid, "{:?}", model.record);
     // The estimated surface rings where the floor does: its response (velocity per unit
     // impulse, modes summed with their signs) peaks at each true mode.
@@ -125,7 +138,6 @@ fn a_struck_floor_is_a_solid_with_its_modes_and_its_spectrum() {
         "LSD {:.2} dB",
         model.record.lsd_db
     );
-    assert_eq!(model.events_per_newton, 0.0);
 }
 
 #[test]
@@ -135,9 +147,9 @@ fn the_kind_can_be_fixed_and_bad_settings_are_refused() {
         kind: KindChoice::Fixed(GroundKind::Aggregate),
         ..EstimateConfig::default()
     };
-    let model = estimate(&recordings, &cfg).expect("estimates");
+    let heel = ExcitationModel::heel_only();
+    let model = estimate(&recordings, &heel, &cfg).expect("estimates");
     assert_eq!(model.kind, GroundKind::Aggregate);
-    assert!(model.events_per_newton > 0.0);
     for bad in [
         EstimateConfig {
             lpc_orders: vec![],
@@ -152,9 +164,14 @@ fn the_kind_can_be_fixed_and_bad_settings_are_refused() {
             ..EstimateConfig::default()
         },
     ] {
-        assert!(estimate(&recordings, &bad).is_err());
+        assert!(estimate(&recordings, &heel, &bad).is_err());
     }
-    assert!(estimate(&[], &EstimateConfig::default()).is_err());
+    assert!(estimate(&[], &heel, &EstimateConfig::default()).is_err());
+    let broken = ExcitationModel {
+        heel: 2.0,
+        ..ExcitationModel::heel_only()
+    };
+    assert!(estimate(&recordings, &broken, &cfg).is_err());
 }
 
 #[test]
@@ -175,30 +192,14 @@ fn the_hammer_has_the_contact_time_asked_for() {
 }
 
 #[test]
-fn the_control_mapping_is_recovered_from_a_noisy_event_rate() {
-    let mut rng = SplitMix64::new(4);
-    let loading: Vec<f64> = (0..2000)
-        .map(|i| (3000.0 * (i as f64 / 300.0).sin()).max(0.0))
-        .collect();
-    let alpha = 0.037;
-    let rate: Vec<f64> = loading
-        .iter()
-        .map(|v| (alpha * v + 2.0 * rng.normal()).max(0.0))
-        .collect();
-    let got = fit_rate_mapping(&rate, &loading).expect("fits");
-    assert!((got / alpha - 1.0).abs() < 0.02, "{got}");
-    assert!(fit_rate_mapping(&rate[..10], &loading).is_err());
-    assert!(fit_rate_mapping(&[1.0], &[0.0]).is_err());
-    assert!(fit_rate_mapping(&[f64::NAN], &[1.0]).is_err());
-}
-
-#[test]
 fn every_builtin_material_has_a_valid_physical_model() {
     for m in &builtin().materials {
         let p = m.physical.as_ref().expect("built-in physical model");
         p.validate().expect("valid");
         assert!(p.record.lsd_db <= 3.0, "{}: {}", m.name, p.record.lsd_db);
-        Ground::new(p, SampleRate(48_000), 1, 64).expect("runs at 48 kHz");
+        let tables = Tables::new(&m.excitation_or_heel(), SampleRate(48_000)).expect("valid");
+        Ground::new(p, SampleRate(48_000), 1, tables.mean_impulse_energy())
+            .expect("runs at 48 kHz");
     }
 }
 
@@ -219,26 +220,26 @@ fn a_broken_physical_model_in_a_library_file_is_refused() {
 }
 
 #[test]
-fn an_aggregate_sounds_only_while_the_foot_loads() {
+fn an_aggregate_sounds_only_when_its_excitation_strikes() {
     let gravel = builtin().get("gravel").expect("gravel");
     let p = gravel.physical.as_ref().expect("physical");
     assert_eq!(p.kind, GroundKind::Aggregate);
     let rate = SampleRate(48_000);
-    let mut ground = Ground::new(p, rate, 3, 64).expect("prepares");
+    let tables = Tables::new(&gravel.excitation_or_heel(), rate).expect("valid");
+    let mut ground = Ground::new(p, rate, 3, tables.mean_impulse_energy()).expect("prepares");
     let mut out = vec![0.0f32; 48_000];
-    // Unloading: nothing.
+    // No excitation: nothing.
     ground.process(&vec![0.0f32; 48_000], &mut out);
     assert!(out.iter().all(|v| *v == 0.0));
     assert_eq!(ground.events(), 0);
-    // Loading at 2 kN/s for 0.25 s: about α · 500 N events.
-    let mut loading = vec![0.0f32; 48_000];
-    loading[..12_000].fill(2000.0);
-    ground.process(&loading, &mut out);
-    let expected = p.events_per_newton * 500.0;
-    let got = ground.events() as f64;
-    assert!(
-        (got - expected).abs() < 4.0 * expected.sqrt() + 1.0,
-        "{got} events, {expected:.1} expected"
-    );
+    // A nominal step's excitation (clock at speed 1): one grain per impulse.
+    let mut generator = Generator::new(5);
+    let mut x = vec![0.0f32; 48_000];
+    generator.step(&tables, 1.0);
+    generator.process(&tables, &vec![1.0; 48_000], &mut x);
+    let impulses = x.iter().filter(|v| **v != 0.0).count() as u64;
+    assert!(impulses > 10, "{impulses}");
+    ground.process(&x, &mut out);
+    assert_eq!(ground.events(), impulses);
     assert!(out.iter().any(|v| *v != 0.0));
 }

@@ -14,7 +14,7 @@ use crate::limits::{MAX_LIBRARY_BYTES, read_to_string_capped};
 
 impl Document for Library {
     const KIND: &'static str = "library";
-    const VERSION: u32 = 2;
+    const VERSION: u32 = 3;
     const OLDEST: u32 = 1;
     type Invalid = InvalidLibrary;
 
@@ -26,6 +26,9 @@ impl Document for Library {
         if from == 1 {
             self.upgrade_from_1();
         }
+        // Format 2 lacks the excitation, the time statistics and the level, which are
+        // optional (a material without an excitation plays one impulse per step, as it
+        // did) and default to the recorded level: nothing to change.
         Ok(self)
     }
 }

@@ -6,7 +6,7 @@
 //!
 //! ```json
 //! {
-//!   "format": "underfoot.library/2",
+//!   "format": "underfoot.library/3",
 //!   "materials": [
 //!     {
 //!       "name": "gravel",
@@ -24,7 +24,13 @@
 //!         "method": "vector-fit+gauss-newton(log)", "strikes": 12, "fit_seconds": 3.1,
 //!         "longest_decay_s": 0.5, "worst": { "db": 1.2, "at_hz": 31.5 }
 //!       },
-//!       "sources": [{ "file": "gravel-01.wav", "sha256": "<64 lower-case hex digits>" }]
+//!       "sources": [{ "file": "gravel-01.wav", "sha256": "<64 lower-case hex digits>" }],
+//!       "excitation": {
+//!         "heel": 0.001, "bin_s": 0.005, "rate_hz": [6400.0, "..."], "energy": [0.004, "..."],
+//!         "duration_spread": 0.35, "perturbation_db": 1.7
+//!       },
+//!       "time": { "steps": 3, "duration_ms": 262.0, "events": 43.0, "crest_db": 14.3, "...": "..." },
+//!       "level_db": -12.0
 //!     }
 //!   ]
 //! }
@@ -32,13 +38,21 @@
 //!
 //! * `format` comes first in meaning: a reader checks it before it looks at anything else,
 //!   so that a file from a newer version is reported as such rather than as a pile of
-//!   field errors. This version writes [`FORMAT`] and reads it and [`FORMAT_1`].
+//!   field errors. This version writes [`FORMAT`] and reads it, [`FORMAT_2`] and
+//!   [`FORMAT_1`].
+//! * **The step in time** (format 3). `excitation` is what drives a step, fitted from the
+//!   recordings ([`crate::excitation::ExcitationModel`]); `time` is the recordings' steps
+//!   measured in time ([`crate::analysis::steps::StepSummary`]), what renders are compared
+//!   with; `level_db` is the playback level re the recorded level
+//!   ([`crate::material::level`]). **Format 2** files lack all three and are read as what
+//!   they played: one impulse per step (the IIR paper's drive) at the recorded level;
+//!   refitting gives them the rest. Saving writes format 3.
 //! * **Decay limit.** `fit.longest_decay_s` is the longest e-fold decay any pole may have;
 //!   the fit searched only inside it, and every load checks it. So the filter stored is
 //!   the filter the voice plays: the voice's own limit (the same 0.5 s by default) finds
 //!   nothing to change.
 //! * **Format 1** files were written before the limit was part of the fit; they are read
-//!   as what the voice played ([`mod@upgrade`]). Saving writes format 2.
+//!   as what the voice played ([`mod@upgrade`]), then as format 2.
 //! * Every material follows the rules of [`mod@validate`]: sections stable and within the
 //!   decay limit, `b`/`a` agreeing with `sos`, a well-formed fit record, a valid name.
 //!
@@ -51,7 +65,7 @@
 //! | `mod.rs` | the [`Library`], its errors, and finding materials in it |
 //! | `file.rs` | the library as a [`Document`](crate::document::Document): reading, writing, the locked edit |
 //! | [`validate`](mod@validate) | the rules of the format for one material, and for names |
-//! | [`upgrade`](mod@upgrade) | format 1 to 2 |
+//! | [`upgrade`](mod@upgrade) | format 1 to 2 (2 to 3 adds nothing to upgrade) |
 
 mod file;
 pub mod upgrade;
@@ -70,13 +84,17 @@ pub use validate::{
 
 /// The format tag of the library files this version reads and writes
 /// (`underfoot.<KIND>/<VERSION>` of the [`Document`](crate::document::Document)).
-pub const FORMAT: &str = "underfoot.library/2";
+pub const FORMAT: &str = "underfoot.library/3";
+
+/// The format before a step's time structure was stored; read as it is (see
+/// [`mod@upgrade`]).
+pub const FORMAT_2: &str = "underfoot.library/2";
 
 /// The format before the decay limit was stored; read and upgraded (see [`mod@upgrade`]).
 pub const FORMAT_1: &str = "underfoot.library/1";
 
 /// Every format tag this version can read.
-pub const SUPPORTED_FORMATS: &[&str] = &[FORMAT, FORMAT_1];
+pub const SUPPORTED_FORMATS: &[&str] = &[FORMAT, FORMAT_2, FORMAT_1];
 
 /// A library of material models.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

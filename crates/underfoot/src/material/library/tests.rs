@@ -44,6 +44,9 @@ fn model(name: &str) -> MaterialModel {
             sha256: "ab".repeat(32),
         }],
         physical: None,
+        excitation: None,
+        time: None,
+        level_db: 0.0,
     }
 }
 
@@ -193,14 +196,14 @@ fn format_1_with_an_unstable_filter_is_still_refused() {
 
 #[test]
 fn unknown_or_missing_format_is_reported_with_supported_versions() {
-    let v3 = r#"{"format": "underfoot.library/3", "materials": [{"whatever": 1}]}"#;
-    let e = Library::from_json(v3, "new.json").expect_err("v3");
+    let v4 = r#"{"format": "underfoot.library/4", "materials": [{"whatever": 1}]}"#;
+    let e = Library::from_json(v4, "new.json").expect_err("v4");
     assert!(
-        matches!(&e, LibraryError::UnknownFormat { found: Some(f), .. } if f == "underfoot.library/3")
+        matches!(&e, LibraryError::UnknownFormat { found: Some(f), .. } if f == "underfoot.library/4")
     );
     let msg = e.to_string();
     assert!(
-        msg.contains("underfoot.library/3") && msg.contains(FORMAT),
+        msg.contains("underfoot.library/4") && msg.contains(FORMAT),
         "{msg}"
     );
 

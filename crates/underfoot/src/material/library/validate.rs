@@ -57,6 +57,12 @@ pub enum ModelError {
     /// The physical model is invalid.
     #[error("physical model: {0}")]
     Physical(#[source] PhysicalError),
+    /// The excitation is invalid.
+    #[error("{0}")]
+    Excitation(#[source] crate::excitation::ExcitationError),
+    /// The playback level is not a finite number of decibels in range.
+    #[error("level_db {0} must be between -120 and +40 dB")]
+    Level(f64),
     /// `sample_rate` is zero.
     #[error("sample_rate is 0")]
     ZeroRate,
@@ -210,6 +216,12 @@ pub fn validate_model(m: &MaterialModel) -> Result<(), ModelError> {
     validate_name(&m.name)?;
     if let Some(p) = &m.physical {
         p.validate().map_err(ModelError::Physical)?;
+    }
+    if let Some(e) = &m.excitation {
+        e.validate().map_err(ModelError::Excitation)?;
+    }
+    if !(m.level_db.is_finite() && (-120.0..=40.0).contains(&m.level_db)) {
+        return Err(ModelError::Level(m.level_db));
     }
     if m.sample_rate.0 == 0 {
         return Err(ModelError::ZeroRate);

@@ -451,6 +451,29 @@ impl Aggregate {
         self.render(&mut out[start..]);
     }
 
+    /// Runs one block struck by `impulses`: each non-zero sample `x` is a micro-impact at
+    /// that sample, of energy `x² / mean_energy` times the mean (so impulses of mean
+    /// energy strike at the RMS speed), by a fragment of random size. `out[n]` receives
+    /// the summed surface velocity, as [`process`](Self::process) does; the Poisson
+    /// process is not run. Runs over the shorter of the two.
+    pub fn process_impulses(&mut self, impulses: &[f32], mean_energy: f64, out: &mut [f32]) {
+        let n = impulses.len().min(out.len());
+        let out = &mut out[..n];
+        out.fill(0.0);
+        let mut start = 0;
+        for (i, &x) in impulses[..n].iter().enumerate() {
+            let strength = f64::from(x) * f64::from(x) / mean_energy;
+            if strength > 0.0 && strength.is_finite() {
+                self.render(&mut out[start..i]);
+                start = i;
+                self.events += 1;
+                let size = (self.log_spread * self.rng.symmetric()).exp();
+                self.strike_slot(strength, size);
+            }
+        }
+        self.render(&mut out[start..]);
+    }
+
     fn event(&mut self) {
         self.events += 1;
         let energy = exponential(&mut self.rng);

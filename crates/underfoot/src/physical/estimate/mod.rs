@@ -15,9 +15,12 @@
 //!    detail band whose top is nearest 12 kHz isolates impact onsets; they are counted in each strike
 //!    window (`K` per strike), and the scale `a` of the event rate `N(t) = e^{a I(t)} - 1`
 //!    of the crumpling measure `I(t)` is fitted so that the expected number of events
-//!    equals the count (recorded as `rate_scale`).
-//! 4. **The control mapping** `N(t) = α v_F(t)` ([`rate`]). With no force recorded, `α`
-//!    is fixed by counting: a nominal step must produce `K` events on average.
+//!    equals the count (recorded as `rate_scale`): the tile paper's analysis, kept in the
+//!    record. What strikes the model is not this rate but the material's excitation
+//!    ([`crate::excitation`]), the same heel impulse and train of micro-impulses the IIR
+//!    voice plays, fitted from the same recordings: its rate follows the force too
+//!    (`N(t) = α(τ) |v_F(t)|`), with a gain that depends on the step's progress.
+//! 4. **The excitation**, given: the renders of step 8 play nominal steps of it.
 //! 5. **Modes by linear prediction** ([`modes`]). The poles of the predictors of several
 //!    orders, from the isolated impacts (or the strike windows), make a dictionary of
 //!    candidate modes.
@@ -56,7 +59,6 @@
 //! | [`config`] | every setting ([`EstimateConfig`]) and its range |
 //! | [`onsets`] | steps 2 and 3: impact onsets per strike, the energy's arrival, solid or aggregate |
 //! | [`crumpling`] | the tile paper's crumpling measure, impact onsets and event rate |
-//! | [`rate`] | step 4: the control mapping ([`fit_rate_mapping`]) |
 //! | [`modes`] | step 5: the dictionary of candidate modes by linear prediction |
 //! | [`hammer`] | step 6: the hammer ([`hammer_for`]) and the spectrum of its pulse |
 //! | [`gains`] | step 7: the modal gains |
@@ -68,12 +70,10 @@ pub mod gains;
 pub mod hammer;
 pub mod modes;
 pub mod onsets;
-pub mod rate;
 pub mod render;
 
 pub use config::{EstimateConfig, KindChoice};
 pub use hammer::hammer_for;
-pub use rate::fit_rate_mapping;
 pub use render::{RENDER_RATE, analyse_render, held_out_seed, render_steps, score_render};
 
 use crumpling::CrumplingError;
@@ -84,6 +84,7 @@ use render::render_measure;
 use super::PhysicalError;
 use super::model::{GroundKind, PhysicalModel, PhysicalRecord};
 use crate::analysis::{AnalysisError, MeasuredResponse, measure};
+use crate::excitation::ExcitationModel;
 use crate::fit::lpc::LpcError;
 use crate::fit::metrics::{METRIC_POINTS, level_offset_db, lsd_db, nrmse};
 use crate::fit::target::Target;
@@ -126,20 +127,25 @@ pub enum EstimateError {
     /// The model could not be built.
     #[error(transparent)]
     Physical(#[from] PhysicalError),
+    /// The excitation the model is rendered with is invalid.
+    #[error(transparent)]
+    Excitation(#[from] crate::excitation::ExcitationError),
 }
 
-/// Estimates a physical model from recordings of footsteps on one material.
+/// Estimates a physical model from recordings of footsteps on one material, struck by
+/// `excitation` (the material's, [`crate::excitation::estimate()`]).
 ///
 /// # Errors
 /// [`EstimateError`] when the recordings hold no usable strike, no mode is found, or a
 /// setting is out of range.
 pub fn estimate(
     recordings: &[Recording],
+    excitation: &ExcitationModel,
     cfg: &EstimateConfig,
 ) -> Result<PhysicalModel, EstimateError> {
     config::check(cfg)?;
     let measured = measure(recordings, &cfg.analysis)?;
-    estimate_measured(recordings, &measured, cfg)
+    estimate_measured(recordings, &measured, excitation, cfg)
 }
 
 /// As [`estimate()`], from the measured response of `recordings` already computed with
@@ -152,8 +158,10 @@ pub fn estimate(
 pub fn estimate_measured(
     recordings: &[Recording],
     measured: &MeasuredResponse,
+    excitation: &ExcitationModel,
     cfg: &EstimateConfig,
 ) -> Result<PhysicalModel, EstimateError> {
+    excitation.validate()?;
     config::check(cfg)?;
     let a = &cfg.analysis;
     if measured.rate != a.rate || measured.band != a.band {
@@ -203,7 +211,6 @@ pub fn estimate_measured(
     let phase0 = Target::minimum_phase(a.rate, a.band, &measured.magnitude, fit_freqs.len())
         .map_err(|_| EstimateError::Gains("no minimum-phase target for the measurement"))?;
     let initial: Vec<f64> = phase0.h.iter().map(|h| h.arg()).collect();
-    let events_per_newton = rate::events_per_newton(kind, events.onsets_per_strike, cfg);
     let record = PhysicalRecord {
         onsets_per_strike: events.onsets_per_strike,
         half_energy_ms: events.half_energy_ms,
@@ -212,6 +219,7 @@ pub fn estimate_measured(
         model: Vec::new(),
         nrmse: f64::NAN,
         lsd_db: f64::NAN,
+        peak: 0.0,
     };
     let fit = GainFit {
         dictionary: &poles,
@@ -242,16 +250,16 @@ pub fn estimate_measured(
                 0.0
             },
             impacts_in_flight: cfg.impacts_in_flight,
-            events_per_newton,
             output_gain: 1.0 / scale,
             record: record.clone(),
         };
         model.validate()?;
         // Level: render, analyse as a recording, match the mean level in dB.
-        let got = render_measure(&model, cfg, cfg.seed)?;
+        let (got, peak) = render_measure(&model, excitation, cfg, cfg.seed)?;
         let scored = got.on_grid(&metric_freqs);
         let correction = 10f64.powf(-level_offset_db(&target, &scored) / 20.0);
         model.output_gain *= correction;
+        model.record.peak = peak * correction;
         let scored: Vec<f64> = scored.iter().map(|g| g * correction).collect();
         model.record.nrmse = nrmse(&target, &scored);
         model.record.lsd_db = lsd_db(&target, &scored);

@@ -1,8 +1,9 @@
 //! Rendering a model as the recordings were made, to set its level and score it (step 8).
 //!
-//! `steps` (8) nominal steps are rendered at 48 kHz ([`RENDER_RATE`]): a solid strikes
-//! once at the step detector's threshold crossing; an aggregate's events follow
-//! `N(t) = α v_F(t)`, so the time structure of the micro-impacts, their random energies
+//! `steps` (8) nominal steps are rendered at 48 kHz ([`RENDER_RATE`]), each struck by the
+//! material's excitation from the step detector's threshold crossing on, its clock driven
+//! by the nominal step's force ([`crate::excitation`]), as the engine plays it: the time
+//! structure of the micro-impacts, their random energies
 //! and sizes, the coupling and the analysis window all count. The render is analysed
 //! exactly as the recordings were ([`crate::analysis::measure`]).
 //!
@@ -11,8 +12,9 @@
 
 use super::{EstimateConfig, EstimateError};
 use crate::analysis::{MeasuredResponse, StrikeSource, measure};
+use crate::excitation::clock::speed_per_newton_per_second;
+use crate::excitation::{ExcitationModel, Generator, Tables};
 use crate::fit::metrics::{Metrics, lsd_db, nrmse};
-use crate::force::drive::DriveKind;
 use crate::force::gait::nominal_step;
 use crate::physical::ground::Ground;
 use crate::physical::model::PhysicalModel;
@@ -44,12 +46,13 @@ pub fn held_out_seed(cfg: &EstimateConfig) -> u64 {
 /// As [`analyse_render`].
 pub fn score_render(
     model: &PhysicalModel,
+    excitation: &ExcitationModel,
     cfg: &EstimateConfig,
     grid: &[Hz],
     measured: &[f64],
     seed: u64,
 ) -> Result<(Vec<f64>, Metrics), EstimateError> {
-    let got = analyse_render(model, cfg, grid, seed)?;
+    let got = analyse_render(model, excitation, cfg, grid, seed)?;
     let metrics = Metrics {
         nrmse: nrmse(measured, &got),
         lsd_db: lsd_db(measured, &got),
@@ -64,33 +67,41 @@ pub fn score_render(
 /// The model is invalid, or the render holds no strike the analysis can find.
 pub fn analyse_render(
     model: &PhysicalModel,
+    excitation: &ExcitationModel,
     cfg: &EstimateConfig,
     freqs: &[Hz],
     seed: u64,
 ) -> Result<Vec<f64>, EstimateError> {
-    Ok(render_measure(model, cfg, seed)?.on_grid(freqs))
+    Ok(render_measure(model, excitation, cfg, seed)?
+        .0
+        .on_grid(freqs))
 }
 
+/// The render's measured response, and its largest sample.
 pub(super) fn render_measure(
     model: &PhysicalModel,
+    excitation: &ExcitationModel,
     cfg: &EstimateConfig,
     seed: u64,
-) -> Result<MeasuredResponse, EstimateError> {
+) -> Result<(MeasuredResponse, f64), EstimateError> {
     // The steps are independent draws (a second apart, each with its own micro-impacts),
     // so they are rendered and analysed in two halves on two threads, the second with its
     // own random stream, and the halves' strikes pooled as `measure` pools a material's.
     let steps = cfg.steps.max(1);
     let first = steps.div_ceil(2);
     let second = steps - first;
-    let half = |n: usize, seed: u64| -> Result<MeasuredResponse, EstimateError> {
-        let samples = render_n_steps(model, cfg, seed, n)?;
+    let half = |n: usize, seed: u64| -> Result<(MeasuredResponse, f64), EstimateError> {
+        let samples = render_n_steps(model, excitation, cfg, seed, n)?;
+        let peak = samples
+            .iter()
+            .fold(0.0f64, |m, v| m.max(f64::from(v.abs())));
         let recording = Recording {
             name: "physical model (rendered)".into(),
             rate: RENDER_RATE,
             samples: samples.iter().map(|v| f64::from(*v)).collect(),
             sha256: String::new(),
         };
-        Ok(measure(&[recording], &cfg.analysis)?)
+        Ok((measure(&[recording], &cfg.analysis)?, peak))
     };
     if second == 0 {
         return half(first, seed);
@@ -103,7 +114,8 @@ pub(super) fn render_measure(
         )));
         (a, b)
     });
-    Ok(pool(a?, b?, cfg.analysis.smoothing_fraction))
+    let ((a, pa), (b, pb)) = (a?, b?);
+    Ok((pool(a, b, cfg.analysis.smoothing_fraction), pa.max(pb)))
 }
 
 /// The random stream of the second half of a render.
@@ -137,20 +149,23 @@ fn pool(a: MeasuredResponse, b: MeasuredResponse, smoothing_fraction: f64) -> Me
     }
 }
 
-/// `cfg.steps` nominal steps, one second apart, through the model at [`RENDER_RATE`].
+/// `cfg.steps` nominal steps, one second apart, through the model at [`RENDER_RATE`],
+/// struck by `excitation`.
 ///
 /// # Errors
-/// The model is invalid.
+/// The model or the excitation is invalid.
 pub fn render_steps(
     model: &PhysicalModel,
+    excitation: &ExcitationModel,
     cfg: &EstimateConfig,
     seed: u64,
 ) -> Result<Vec<f32>, EstimateError> {
-    render_n_steps(model, cfg, seed, cfg.steps)
+    render_n_steps(model, excitation, cfg, seed, cfg.steps)
 }
 
 fn render_n_steps(
     model: &PhysicalModel,
+    excitation: &ExcitationModel,
     cfg: &EstimateConfig,
     seed: u64,
     steps: usize,
@@ -164,39 +179,27 @@ fn render_n_steps(
     }
     let period = RENDER_RATE.samples_in(Seconds(1.0)).max(step.len() + 1);
     let lead = RENDER_RATE.samples_in(Seconds(0.1));
-    let block = 256;
-    let mut ground = Ground::new(model, RENDER_RATE, seed, block)?;
+    let tables = Tables::new(excitation, RENDER_RATE)?;
+    let mut ground = Ground::new(model, RENDER_RATE, seed, tables.mean_impulse_energy())?;
+    // Its own stream: the grains' sizes and the train's draws are independent.
+    let mut generator = Generator::new(seed ^ 0xE7C1_7A71_0000_0001);
     let threshold = crate::force::steps::DetectorConfig::default().on.0;
+    let strike = step.iter().position(|&f| f >= threshold).unwrap_or(0);
     let mut force = vec![0.0; lead + period * steps.max(1)];
-    let mut strikes = Vec::new();
     for s in 0..steps.max(1) {
         let start = lead + s * period;
         force[start..start + step.len()].copy_from_slice(&step);
-        if let Some(i) = step.iter().position(|&f| f >= threshold) {
-            strikes.push(start + i);
-        }
     }
-    let loading = DriveKind::ForceRate.offline(&force, RENDER_RATE, Newtons(1.0));
+    let k = speed_per_newton_per_second(Newtons::weight_of(cfg.nominal_weight_kg)) * fs;
+    let mut x = vec![0.0f32; force.len()];
+    for (n, v) in x.iter_mut().enumerate() {
+        if n >= lead && (n - lead) % period == strike {
+            generator.strike(&tables, 1.0);
+        }
+        let speed = (force[n] - force[n.saturating_sub(1)]).abs() * k;
+        *v = generator.next(&tables, speed as f32);
+    }
     let mut out = vec![0.0f32; force.len()];
-    let mut next = 0;
-    for (b, chunk) in out.chunks_mut(block).enumerate() {
-        let at = b * block;
-        let end = at + chunk.len();
-        let mut pos = at;
-        while pos < end {
-            let until = strikes
-                .get(next)
-                .copied()
-                .filter(|&s| s < end)
-                .unwrap_or(end);
-            if until > pos {
-                ground.process(&loading[pos..until], &mut chunk[pos - at..until - at]);
-                pos = until;
-            } else {
-                ground.strike(1.0);
-                next += 1;
-            }
-        }
-    }
+    ground.process(&x, &mut out);
     Ok(out)
 }

@@ -26,6 +26,20 @@ pub struct VoiceConfig {
     pub magnitude_iterations: usize,
     /// Which model plays: the fitted filter (default) or the calibrated physical model.
     pub model: SynthModel,
+    /// What drives a step: the material's fitted excitation (default) or one impulse.
+    pub excitation: ExcitationChoice,
+}
+
+/// What drives each step of a material.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ExcitationChoice {
+    /// The excitation fitted from the material's recordings: the heel impact and its train
+    /// of micro-impacts ([`crate::excitation`]); one impulse for a material fitted before
+    /// the excitation existed.
+    #[default]
+    Fitted,
+    /// One impulse per step, whatever the material: the IIR paper's drive.
+    Heel,
 }
 
 /// Which of a material's models the engine plays.
@@ -51,6 +65,7 @@ impl Default for VoiceConfig {
             regularisation: 0.0,
             magnitude_iterations: 40,
             model: SynthModel::Iir,
+            excitation: ExcitationChoice::Fitted,
         }
     }
 }
@@ -104,6 +119,14 @@ pub enum VoiceError {
         value: f64,
         /// The range it must lie in.
         expected: &'static str,
+    },
+    /// The material's excitation cannot play at this rate.
+    #[error("material {name:?}: excitation: {source}")]
+    Excitation {
+        /// The material.
+        name: String,
+        /// Why.
+        source: crate::excitation::ExcitationError,
     },
     /// A post-filter setting does not fit the rate.
     #[error("material {name:?}: post filter: {reason}")]

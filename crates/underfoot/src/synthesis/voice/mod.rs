@@ -18,7 +18,7 @@ pub mod config;
 pub mod play;
 pub mod prepared;
 
-pub use config::{SynthModel, VoiceConfig, VoiceError};
+pub use config::{ExcitationChoice, SynthModel, VoiceConfig, VoiceError};
 pub use play::Voice;
 pub use prepared::PreparedMaterial;
 

@@ -108,7 +108,7 @@ impl Voice {
         self.direct = m.direct;
         self.sections = m.sections;
         self.section_count = m.section_count;
-        self.gain = m.drive_gain[drive.index()];
+        self.gain = m.drive_gain[drive.index()] * m.level;
         self.clock = 0;
         self.reset();
     }

@@ -5,7 +5,25 @@
 //! for seconds, and an actuator on skin must not), its residues re-solved so that modes
 //! and post filter together have the model's response across the band, and one
 //! normalised gain per drive ([`PreparedMaterial::normalise_drives`]). A [`Voice`]
-//! copies those coefficients (see [`mod@super::play`]).
+//! copies those coefficients (see [`mod@super::play`]). Beside them: the material's
+//! excitation at the audio rate ([`crate::excitation::Tables`]), its playback level
+//! ([`crate::material::level`]), and the size of its per-step perturbation.
+//!
+//! # The perturbation's size
+//!
+//! The IIR paper perturbs each numerator coefficient by 1% at every step. Real steps on
+//! one material differ by far more (4-5.5 dB of gain-aligned log-spectral distance between
+//! two steps, 1/6-octave bands, on the shared recordings), most of it from what the
+//! excitation's random train already varies. What the train leaves,
+//! [`ExcitationModel::perturbation_db`](crate::excitation::ExcitationModel::perturbation_db),
+//! is given to the perturbation: `σ` is found (bisection on `[0, 0.5]`) so that two
+//! independently perturbed copies of this voice's response, `d + Σ_k ½(r̃_k/(1 - p_k
+//! e^{-iω}) + r̃_k^*/(1 - p_k^* e^{-iω}))` times the post filter, with every real and
+//! imaginary part of a residue and the direct term multiplied by `1 + σ n`, differ by that
+//! distance on average (48 seeded pairs, power averaged over the sixth-octave bands of
+//! the model's band, 4 frequencies a band). Two independent contributions add in
+//! quadrature, which is how the train's and the perturbation's were split. A material
+//! without an excitation (a file before format 3) keeps the paper's 1%.
 //!
 //! # Post filter
 //!
@@ -17,13 +35,19 @@
 
 use num_complex::Complex64;
 
-use super::{MAX_MODES, MAX_POST_SECTIONS, Section, SynthModel, Voice, VoiceConfig, VoiceError};
+use super::{
+    ExcitationChoice, MAX_MODES, MAX_POST_SECTIONS, Section, SynthModel, Voice, VoiceConfig,
+    VoiceError,
+};
+use crate::analysis::steps::{StepConfig, band_centres};
+use crate::excitation::{ExcitationModel, Tables};
 use crate::force::drive::DriveKind;
 use crate::material::MaterialModel;
-use crate::physical::Ground;
+use crate::physical::{Ground, PhysicalModel};
+use crate::signal::noise::SplitMix64;
 use crate::signal::{Sos, butterworth};
 use crate::synthesis::modal::ModalFilter;
-use crate::units::{Hz, SampleRate, Seconds};
+use crate::units::{Band, Decibels, Hz, SampleRate, Seconds};
 
 /// A material ready for one audio rate. Built off the audio thread; a [`Voice`] copies it.
 #[derive(Debug, Clone)]
@@ -39,8 +63,16 @@ pub struct PreparedMaterial {
     /// Gain per drive ([`DriveKind::index`]) that makes a nominal step reproduce the
     /// recorded level.
     pub drive_gain: [f32; DriveKind::COUNT],
-    /// The physical model at the audio rate, when [`VoiceConfig::model`] asks for it.
+    /// The physical model at the audio rate (its output at the playback level), when
+    /// [`VoiceConfig::model`] asks for it.
     pub ground: Option<Ground>,
+    /// What drives each step, at the audio rate.
+    pub excitation: Tables,
+    /// The playback level (amplitude re the recorded level): the voice's gain includes it.
+    pub level: f32,
+    /// The standard deviation of the per-step numerator perturbation sized for this
+    /// material (see the module documentation).
+    pub perturbation: f32,
     pub(super) modes: usize,
     pub(super) pole_re: [f32; MAX_MODES],
     pub(super) pole_im: [f32; MAX_MODES],
@@ -51,8 +83,9 @@ pub struct PreparedMaterial {
     pub(super) section_count: usize,
 }
 
-/// The scratch block of a physical model's runtime; longer blocks run in pieces.
-const GROUND_BLOCK: usize = 256;
+/// The perturbation of a material fitted before its steps' spread was measured: the IIR
+/// paper's.
+pub const PAPER_PERTURBATION: f32 = 0.01;
 
 impl PreparedMaterial {
     /// Prepares `model` for playback at `rate`. Every drive's gain is 1 until
@@ -151,6 +184,19 @@ impl PreparedMaterial {
                 })?;
         }
 
+        let fitted = match config.excitation {
+            ExcitationChoice::Fitted => model.excitation.as_ref(),
+            ExcitationChoice::Heel => None,
+        };
+        let excitation = Tables::new(
+            &fitted.cloned().unwrap_or_else(ExcitationModel::heel_only),
+            rate,
+        )
+        .map_err(|source| VoiceError::Excitation {
+            name: name.clone(),
+            source,
+        })?;
+        let level = Decibels(model.level_db).to_amplitude();
         let ground = match config.model {
             SynthModel::Iir => None,
             SynthModel::Physical => {
@@ -158,12 +204,15 @@ impl PreparedMaterial {
                     .physical
                     .as_ref()
                     .ok_or_else(|| VoiceError::NoPhysicalModel { name: name.clone() })?;
-                let ground = Ground::new(physical, rate, 0, GROUND_BLOCK).map_err(|source| {
-                    VoiceError::Physical {
+                let levelled = PhysicalModel {
+                    output_gain: physical.output_gain * level,
+                    ..physical.clone()
+                };
+                let ground = Ground::new(&levelled, rate, 0, excitation.mean_impulse_energy())
+                    .map_err(|source| VoiceError::Physical {
                         name: name.clone(),
                         source,
-                    }
-                })?;
+                    })?;
                 Some(ground)
             }
         };
@@ -172,6 +221,9 @@ impl PreparedMaterial {
             limited_modes,
             drive_gain: [1.0; DriveKind::COUNT],
             ground,
+            excitation,
+            level: level as f32,
+            perturbation: PAPER_PERTURBATION,
             modes: modal.modes.len(),
             pole_re: [0.0; MAX_MODES],
             pole_im: [0.0; MAX_MODES],
@@ -197,7 +249,107 @@ impl PreparedMaterial {
                 s: [0.0; 2],
             };
         }
+        if let Some(e) = fitted {
+            prepared.perturbation = prepared.perturbation_for(e.perturbation_db, model.band_hz);
+        } else if model.excitation.is_some() {
+            // One impulse asked for, of a material that has an excitation: its fitted size.
+            let e = model.excitation.as_ref().map_or(0.0, |e| e.perturbation_db);
+            prepared.perturbation = prepared.perturbation_for(e, model.band_hz);
+        }
         Ok(prepared)
+    }
+
+    /// The perturbation `σ` whose two independent draws differ by `spread_db` on average
+    /// (see the module documentation); 0 for a spread of 0, at most 0.5.
+    #[must_use]
+    pub fn perturbation_for(&self, spread_db: f64, band: Band) -> f32 {
+        if !(spread_db.is_finite() && spread_db > 0.0) {
+            return 0.0;
+        }
+        let rate = self.modal.rate;
+        let steps_cfg = StepConfig {
+            band,
+            ..StepConfig::default()
+        };
+        let centres = band_centres(&steps_cfg);
+        let half = 2f64.powf(0.5 / steps_cfg.spectrum_fraction);
+        let omegas: Vec<Vec<Complex64>> = centres
+            .iter()
+            .map(|c| {
+                (0..4)
+                    .map(|i| {
+                        let f = c / half * half.powf(2.0 * (f64::from(i) + 0.5) / 4.0);
+                        Complex64::from_polar(1.0, -rate.omega(Hz(f)))
+                    })
+                    .collect()
+            })
+            .collect();
+        let post: Vec<Vec<f64>> = centres
+            .iter()
+            .zip(&omegas)
+            .map(|(_, zs)| {
+                zs.iter()
+                    .map(|z| self.post.response(-z.arg()).norm_sqr())
+                    .collect()
+            })
+            .collect();
+        let pairs = 48;
+        let spread_at = |sigma: f64| {
+            let mut rng = SplitMix64::new(0x5EED_5EED);
+            let mut draw = || -> Vec<f64> {
+                let mut g = |v: f32| f64::from(v) * (1.0 + sigma * rng.normal());
+                let d = g(self.direct);
+                let residues: Vec<Complex64> = (0..self.modes)
+                    .map(|k| Complex64::new(g(self.res_re[k]), g(self.res_im[k])))
+                    .collect();
+                omegas
+                    .iter()
+                    .zip(&post)
+                    .map(|(zs, ps)| {
+                        let power: f64 = zs
+                            .iter()
+                            .zip(ps)
+                            .map(|(z, p)| {
+                                let mut h = Complex64::new(d, 0.0);
+                                for (k, r) in residues.iter().enumerate() {
+                                    let pole = Complex64::new(
+                                        f64::from(self.pole_re[k]),
+                                        f64::from(self.pole_im[k]),
+                                    );
+                                    h += 0.5
+                                        * (r / (1.0 - pole * z)
+                                            + r.conj() / (1.0 - pole.conj() * z));
+                                }
+                                h.norm_sqr() * p
+                            })
+                            .sum();
+                        10.0 * (power / zs.len() as f64).max(1e-300).log10()
+                    })
+                    .collect()
+            };
+            let mut total = 0.0;
+            for _ in 0..pairs {
+                let (a, b) = (draw(), draw());
+                let d: Vec<f64> = a.iter().zip(&b).map(|(x, y)| x - y).collect();
+                let mean = d.iter().sum::<f64>() / d.len() as f64;
+                total +=
+                    (d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / d.len() as f64).sqrt();
+            }
+            total / f64::from(pairs)
+        };
+        let (mut lo, mut hi) = (0.0f64, 0.5f64);
+        if spread_at(hi) <= spread_db {
+            return hi as f32;
+        }
+        for _ in 0..24 {
+            let mid = 0.5 * (lo + hi);
+            if spread_at(mid) < spread_db {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        (0.5 * (lo + hi)) as f32
     }
 
     /// Sets the gain of the force-driven drives so that `nominal_step` (total force of
@@ -225,16 +377,6 @@ impl PreparedMaterial {
                 1.0
             };
         }
-    }
-
-    /// The largest absolute sample of a unit step under the impulse drive (one second of
-    /// its response): what a nominal step peaks at before the output gain.
-    #[must_use]
-    pub fn impulse_peak(&self) -> f32 {
-        let tail = self.modal.rate.samples_in(Seconds(1.0)).max(1) - 1;
-        self.render(&[1.0], tail)
-            .iter()
-            .fold(0.0, |m, v| m.max(v.abs()))
     }
 
     /// A fresh voice of this material under the impulse drive's gain, run on `input`

@@ -76,6 +76,8 @@
 //! [`raw_response`] is the reference the chain is checked against: the same strikes (same
 //! onsets, same windows) of the recordings only resampled, averaged and smoothed alike.
 
+pub mod steps;
+
 use crate::fit::target::interpolate_bins;
 use crate::recording::Recording;
 use crate::recording::strikes::{OnsetConfig, find_onsets};
@@ -336,7 +338,7 @@ pub fn condition(rec: &Recording, cfg: &AnalysisConfig) -> Result<Vec<f64>, Anal
 
 /// Samples for the trend filter's ringing to fall to [`SETTLE_LEVEL`]:
 /// `ceil(ln(level) / ln(r))` for the largest pole radius `r`.
-fn settle_samples(trend: &Sos, rate: SampleRate) -> usize {
+pub(crate) fn settle_samples(trend: &Sos, rate: SampleRate) -> usize {
     let cap = rate.samples_in(MAX_SETTLE);
     let r = trend.poles().iter().map(|p| p.norm()).fold(0.0, f64::max);
     if r.is_nan() || r >= 1.0 {
