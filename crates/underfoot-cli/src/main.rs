@@ -10,6 +10,7 @@ mod message;
 mod output;
 mod plot;
 mod report;
+mod steps;
 
 use std::process::ExitCode;
 

@@ -28,21 +28,33 @@
 //!
 //! and `--plot DIR` draws `DIR/NAME.svg` (or `.png` with `--plot-format png`): measured,
 //! IIR and physical (held-out render) spectra in one panel, the IIR paper's Fig. 4.
+//!
+//! A second table gives the steps in time ([`underfoot::analysis::steps`]): per material,
+//! the recordings' median duration (`D90`), micro-event count, crest factor and spread
+//! between steps, beside those of `--steps` (24) steps of a generated walk rendered at
+//! 48 kHz by the IIR filter and by the physical model, each played by the material's
+//! fitted excitation at its playback level; and how far each render's average step
+//! spectrum (gain-aligned) and level are from the recordings'. The JSON holds them under
+//! `time` (`recorded`, `iir`, `physical`).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use clap::Args;
 use serde::Serialize;
+use underfoot::analysis::steps::StepSummary;
 use underfoot::atomic_file::OutputFile;
 use underfoot::material::build::{BuildConfig, build_material};
+use underfoot::material::evaluate::StepComparison;
 use underfoot::material::library::validate_name;
 use underfoot::physical::estimate::{held_out_seed, score_render};
 use underfoot::recording;
+use underfoot::synthesis::SynthModel;
 use underfoot::units::Hz;
 
 use crate::output::emit;
 use crate::plot::{self, Omitted, Panel};
+use crate::steps::{TimeRow, render_and_compare, time_table};
 
 /// Arguments of `underfoot compare`.
 #[derive(Debug, Args)]
@@ -56,6 +68,9 @@ pub struct CompareArgs {
     /// Image format of the plots.
     #[arg(long, value_name = "svg|png", default_value = "svg", value_parser = ["svg", "png"])]
     plot_format: String,
+    /// Steps of a generated walk rendered per material and model for the table in time.
+    #[arg(long, default_value_t = 24, value_name = "N", value_parser = clap::value_parser!(u32).range(2..=200))]
+    steps: u32,
     /// Materials and their recordings, e.g. `gravel=recordings/gravel`.
     #[arg(required = true, value_name = "NAME=FOLDER", value_parser = parse_pair)]
     materials: Vec<(String, PathBuf)>,
@@ -78,6 +93,34 @@ struct Row {
     name: String,
     iir: IirScore,
     physical: PhysicalScore,
+    time: TimeScore,
+}
+
+/// The steps in time: the recordings', and renders of each model beside them.
+#[derive(Debug, Serialize)]
+struct TimeScore {
+    recorded: Option<StepSummary>,
+    iir: Option<RenderedSteps>,
+    physical: Option<RenderedSteps>,
+}
+
+#[derive(Debug, Serialize)]
+struct RenderedSteps {
+    steps: StepSummary,
+    /// Gain-aligned LSD between the rendered and the recorded average step spectra.
+    spectrum_db: f64,
+    /// The rendered steps' level over the recorded ones' (playback level taken out).
+    level_db: f64,
+}
+
+impl RenderedSteps {
+    fn of(c: &StepComparison) -> Self {
+        Self {
+            steps: c.rendered.clone(),
+            spectrum_db: c.spectrum_db,
+            level_db: c.level_db,
+        }
+    }
 }
 
 #[derive(Debug, Serialize)]
@@ -174,6 +217,7 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
     let cfg = BuildConfig::default();
     let cal = cfg.physical.clone().unwrap_or_default();
     let mut rows = Vec::new();
+    let mut in_time = Vec::new();
     emit(&format!(
         "{:<12} {:>10} {:>9} {:>6} | {:>10} {:>9} {:>12} {:>9} {:>5}\n",
         "material",
@@ -227,6 +271,22 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
                 kind: physical.kind.name(),
                 modes: physical.modes.len(),
             },
+            time: TimeScore {
+                recorded: None,
+                iir: None,
+                physical: None,
+            },
+        };
+        let steps = args.steps as usize;
+        let iir = render_and_compare(&model, SynthModel::Iir, steps)
+            .with_context(|| format!("rendering the steps of {name}"))?;
+        let physical_steps = render_and_compare(&model, SynthModel::Physical, steps)
+            .with_context(|| format!("rendering the physical model's steps of {name}"))?;
+        let mut row = row;
+        row.time = TimeScore {
+            recorded: model.time.clone(),
+            iir: iir.as_ref().map(RenderedSteps::of),
+            physical: physical_steps.as_ref().map(RenderedSteps::of),
         };
         emit(&format!(
             "{:<12} {:>10.4} {:>9.2} {:>6} | {:>10.4} {:>9.2} {:>12.2} {:>9} {:>5}\n",
@@ -264,7 +324,23 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
             }
         }
         rows.push(row);
+        in_time.push((model, iir, physical_steps));
     }
+    let time_rows: Vec<TimeRow<'_>> = in_time
+        .iter()
+        .map(|(model, iir, physical)| TimeRow {
+            name: &model.name,
+            model,
+            iir: iir.as_ref(),
+            physical: physical.as_ref(),
+        })
+        .collect();
+    emit(&format!(
+        "\nThe steps in time: recorded / rendered by the IIR filter / by the physical model \
+         ({} steps each of a generated walk at 48 kHz, measured as the recordings are):\n\n{}",
+        args.steps,
+        time_table(&time_rows)
+    ))?;
     if let Some(out) = &json_out {
         let mut json = serde_json::to_string_pretty(&Table { materials: rows })?;
         json.push('\n');

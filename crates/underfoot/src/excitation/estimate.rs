@@ -253,19 +253,8 @@ pub fn estimate(
         amplitude_shape: shape,
         ..model
     };
-    // The time axis. The profile comes from the recordings' own envelopes, stretched to
-    // their typical duration, so it is right as it stands unless smoothing, the
-    // deconvolution and the spread of time scales have lengthened or shortened the
-    // rendered steps: one correction, kept only if the render comes closer.
-    let duration_error = |s: &StepSummary| {
-        if s.duration_ms > 0.0 && target.duration_ms > 0.0 {
-            (s.duration_ms / target.duration_ms).ln().abs()
-        } else {
-            0.0
-        }
-    };
     // A step's duration spreads widely (a long tail holds a few percent of the energy,
-    // or not), so its median is taken over four times the renders.
+    // or not), so it is measured over four times the renders.
     let long = Renderer {
         count: 4 * cfg.renders,
         ..Renderer::new(&fine_kernel, &fine_speeds, fine, &steps_cfg, cfg)
@@ -282,27 +271,13 @@ pub fn estimate(
         .max(0.0)
         .sqrt()
         .min(1.0);
-    let build = |density: f64, stretch: f64| build_with(density, stretch, duration_spread);
-    let mut stretch = 1.0;
-    let mut at = if duration_spread > 0.0 {
-        long.summary(&build(probe, stretch)?)?
-    } else {
-        summarize(&alone, &steps_cfg)
+    let build = |density: f64, stretch: f64, shape: f64| {
+        build_with(density, stretch, duration_spread).map(|m| shaped(m, shape))
     };
-    for _ in 0..2 {
-        if duration_error(&at) <= 1.1f64.ln() || at.duration_ms <= 0.0 {
-            break;
-        }
-        let c = (stretch * target.duration_ms / at.duration_ms).clamp(0.25, 4.0);
-        let next = long.summary(&build(probe, c)?)?;
-        if duration_error(&next) >= duration_error(&at) {
-            break;
-        }
-        (stretch, at) = (c, next);
-    }
-    // The density: the median micro-event count of rendered steps against the recordings',
-    // each error in units of what the acceptance of a render tolerates (a count 1.5 times
-    // off, a crest factor 3 dB off, each costs one).
+    // The density and the magnitudes' shape: the median micro-event count and crest
+    // factor of rendered steps against the recordings', each error in units of what the
+    // acceptance of a render tolerates (a count 1.5 times off, a crest 3 dB off, each
+    // costs one).
     let events_target = target.events;
     let score = |s: &StepSummary| {
         ((s.events + 1.0) / (events_target + 1.0)).ln().abs() / 1.5f64.ln()
@@ -311,47 +286,94 @@ pub fn estimate(
     // The generator plays up to `MAX_DRAWS` events a sample, at a clock up to about twice
     // the mean pace (the loading): denser trains would be cut short.
     let densest = fine.hz() * f64::from(super::MAX_DRAWS) / 4.0;
-    let mut best: Option<(f64, f64, f64, StepSummary)> = None;
-    let try_at = |d: f64, shape: f64, best: &mut Option<(f64, f64, f64, StepSummary)>| {
-        let summary = renderer.summary(&shaped(build(d.min(densest), stretch)?, shape))?;
-        let s = score(&summary);
-        if best.as_ref().is_none_or(|b| s < b.0) {
-            *best = Some((s, d.min(densest), shape, summary));
+    type Best = Option<(f64, f64, f64, StepSummary)>;
+    let search = |stretch: f64, candidates: &[(f64, f64)], best: &mut Best| {
+        for &(d, shape) in candidates {
+            let d = d.min(densest);
+            let summary = renderer.summary(&build(d, stretch, shape)?)?;
+            let s = score(&summary);
+            if best.as_ref().is_none_or(|b| s < b.0) {
+                *best = Some((s, d, shape, summary));
+            }
         }
         Ok::<(), ExcitationError>(())
     };
-    // The density over octaves with exponential energies; then the shape beside the best
-    // density and its neighbours; then the density again, finer.
-    for &d in DENSITIES.iter().filter(|d| **d <= densest) {
-        try_at(d, 2.0, &mut best)?;
-    }
-    if let Some((_, d, _, _)) = best.clone() {
-        for shape in SHAPES {
-            for k in [0.5, 1.0, 2.0] {
-                if !(shape == 2.0 && k == 1.0) {
-                    try_at(d * k, shape, &mut best)?;
-                }
-            }
-        }
-    }
-    for round in 1..cfg.rounds.max(1) {
-        let Some((_, d, shape, _)) = best.clone() else {
-            break;
+    let around = |best: &Best, factors: &[f64], shapes: &[f64]| -> Vec<(f64, f64)> {
+        let Some((_, d, shape, _)) = best else {
+            return Vec::new();
         };
+        let shapes: Vec<f64> = if shapes.is_empty() {
+            vec![*shape]
+        } else {
+            shapes.to_vec()
+        };
+        shapes
+            .iter()
+            .flat_map(|&k| factors.iter().map(move |&f| (d * f, k)))
+            .collect()
+    };
+    // The density over octaves with exponential energies; then the shape beside the best
+    // density and its neighbours.
+    let mut best: Best = None;
+    let octaves: Vec<(f64, f64)> = DENSITIES
+        .iter()
+        .filter(|d| **d <= densest)
+        .map(|&d| (d, 2.0))
+        .collect();
+    search(1.0, &octaves, &mut best)?;
+    let shapes = around(&best, &[0.5, 1.0, 2.0], &SHAPES);
+    search(1.0, &shapes, &mut best)?;
+    let Some((_, density, shape, _)) = best.clone() else {
+        return Err(bad("no calibration render finished".into()));
+    };
+
+    // The time axis, at that density and shape. The profile comes from the recordings' own
+    // envelopes, stretched to their typical duration, so it is right as it stands unless
+    // smoothing, the deconvolution and the spread of time scales have lengthened or
+    // shortened the rendered steps: at most three corrections, each kept only if the
+    // (long) render comes closer.
+    // A step's duration spreads widely, often in two clusters (a long tail holds a few
+    // percent of its energy, or not), where a median over renders jumps from one to the
+    // other: the renders' is taken as the mean of the middle half of their log-durations,
+    // which moves smoothly, against the log of the recordings' median.
+    let log_mean = |steps: &[Step]| {
+        let mut logs: Vec<f64> = steps.iter().map(|s| s.duration.0.max(1e-4).ln()).collect();
+        logs.sort_by(f64::total_cmp);
+        let (a, b) = (logs.len() / 4, logs.len() - logs.len() / 4);
+        logs[a..b].iter().sum::<f64>() / (b - a).max(1) as f64
+    };
+    let want = (target.duration_ms.max(0.1) / 1e3).ln();
+    let mut stretch = 1.0;
+    let mut at = log_mean(&long.describe(&build(density, stretch, shape)?, false)?);
+    for _ in 0..3 {
+        if (at - want).abs() <= 1.05f64.ln() {
+            break;
+        }
+        let c = (stretch * (want - at).exp()).clamp(0.25, 4.0);
+        let next = log_mean(&long.describe(&build(density, c, shape)?, false)?);
+        if (next - want).abs() >= (at - want).abs() {
+            break;
+        }
+        (stretch, at) = (c, next);
+    }
+    // The density again, finer, on the corrected time axis.
+    let mut best: Best = None;
+    search(stretch, &[(density, shape)], &mut best)?;
+    for round in 1..cfg.rounds.max(1) {
         let r = 2f64.powf(0.5f64.powi(round as i32));
-        try_at(d / r, shape, &mut best)?;
-        try_at(d * r, shape, &mut best)?;
+        let near = around(&best, &[1.0 / r, r], &[]);
+        search(stretch, &near, &mut best)?;
     }
     let Some((_, density, shape, rendered)) = best else {
         return Err(bad("no calibration render finished".into()));
     };
-    let mut model = shaped(build(density, stretch)?, shape);
-    // The final render, spectra and all: the spread between its steps, beside their
-    // time structure (the search's own render of this model, the same steps).
+    let mut model = build(density, stretch, shape)?;
+    // The final render, over the long renders' steps, spectra and all: the spread between
+    // its steps, beside their time structure.
     let rendered = {
-        let steps = renderer.describe(&model, true)?;
+        let steps = long.describe(&model, true)?;
         let summary = summarize(&steps, &steps_cfg);
-        debug_assert_eq!(summary.events, rendered.events);
+        debug_assert!(rendered.events >= 0.0);
         summary
     };
     model.perturbation_db = match (target.spread_db, rendered.spread_db) {

@@ -15,17 +15,43 @@
 //! The gain is also given in fixed point (`gain_q 2^-gain_shift`, the largest shift that
 //! keeps `gain_q` in 16 bits) for parts without a floating-point unit.
 //!
+//! # The excitation
+//!
+//! Each material also carries its excitation ([`crate::excitation`]) at its rate, the
+//! rate its filter is exported at: the heel impulse's size, the profile's per-bin
+//! thresholds (`λ_b 2^{32}`, `f64`) and amplitudes (`f32`), and the tables of time scales
+//! (64 `f64`) and magnitudes (256 `f32`), the last two written once for all the
+//! materials that share them (the same rate and duration spread; the same shape). The
+//! implementation's `uf_exc_*` functions are [`Generator`](crate::excitation::Generator)
+//! in C: the same state, the same SplitMix64 stream, the same operations in the same
+//! order (integers, correctly rounded `+ - × ÷` and comparisons, exact conversions, table
+//! look-ups, and the saturating `as usize` written out so that C has no undefined
+//! conversion), so a C channel seeded as a Rust one plays the same samples bit for bit;
+//! the tables' values are hexadecimal literals, which C99 reads exactly, where a decimal
+//! literal may be rounded either way. The test drives both with the same strikes and
+//! clock speeds and compares every sample's bits. `UF_NO_EXCITATION` leaves all of it
+//! out; `UF_EXC_ACTIVITY` is the nominal activity `ḡ` that turns a walker's `|dF/dt|`
+//! into the clock's speed ([`clock`](crate::excitation::clock)). The header comment
+//! gives what each material's tables cost: 12 bytes a bin and a 32-byte descriptor of
+//! its own (0.6-1.4 kB for the built-ins), plus 512 bytes per time-scale table and 1 kB
+//! per magnitude table, linked once whatever the number of materials using them.
+//!
 //! Portability: C99 with `<stdint.h>` (`int64_t` is emulated on 16-bit parts); right
 //! shifts of negative values must be arithmetic, which the header checks at compile time
 //! (every compiler for every microcontroller we know of does this). No `<math.h>`, no
-//! allocation, no globals besides the constant tables.
+//! allocation, no globals besides the constant tables. The excitation uses `double`
+//! (software on a part without a double-precision unit) and is bit-exact where `float`
+//! and `double` arithmetic is evaluated at its own precision (`FLT_EVAL_METHOD` 0).
 //!
-//! Not in the header: the per-step numerator perturbation of the voice and the force
-//! drive; firmware feeds the cascade its own drive signal.
+//! Not in the header: the per-step numerator perturbation of the voice, the step
+//! detector and force conditioning (firmware strikes the generator and gives it the
+//! clock's speed), and the material's playback level (`level_db`): `gain` restores the
+//! model's level, as recorded.
 
 use std::fmt::Write as _;
 
 use super::{Export, Exported};
+use crate::excitation::{QUANTILES, SCALES, clock};
 
 /// The header text; deterministic (same export, same bytes).
 #[must_use]
@@ -86,6 +112,8 @@ pub fn header(export: &Export) -> String {
             m.pole_margin
         );
     }
+    let shared = Shared::new(export);
+    excitation_figures(&mut h, export, &shared);
     h.push_str(PRELUDE);
     let w = &mut h;
     let _ = writeln!(w, "#define UF_MATERIAL_COUNT {}u", export.materials.len());
@@ -101,6 +129,14 @@ pub fn header(export: &Export) -> String {
         w,
         "/* The most sections any material here has: the size of a state array. */\n\
          #define UF_MAX_SECTIONS {max_sections}u"
+    );
+    // ḡ is the crate's, not the library's: a walker's |dF/dt| to the clock's speed.
+    let _ = writeln!(
+        w,
+        "/* The nominal step's mean |dF/dt| / W over its stance, per second: a step clock\n \
+         * speed is |dF/dt| / (W UF_EXC_ACTIVITY), W the walker's weight. */\n\
+         #define UF_EXC_ACTIVITY {:e}",
+        clock::nominal_activity()
     );
     h.push_str(LINKING);
     let w = &mut h;
@@ -122,8 +158,9 @@ pub fn header(export: &Export) -> String {
     h.push_str(DECLARATIONS);
     h.push_str("\n#ifdef UNDERFOOT_IMPLEMENTATION\n\n");
     h.push_str(TABLE_MACROS);
+    shared.write(&mut h);
     for (i, m) in export.materials.iter().enumerate() {
-        tables(&mut h, i, m);
+        tables(&mut h, i, m, shared.of[i]);
     }
     let w = &mut h;
     let _ = writeln!(
@@ -139,7 +176,7 @@ pub fn header(export: &Export) -> String {
     h
 }
 
-fn tables(h: &mut String, i: usize, m: &Exported) {
+fn tables(h: &mut String, i: usize, m: &Exported, (steps, quantiles): (usize, Option<usize>)) {
     let id = ident(i, &m.name);
     let _ = writeln!(h, "/* {} */", comment_safe(&m.name));
     let _ = writeln!(
@@ -211,6 +248,37 @@ fn tables(h: &mut String, i: usize, m: &Exported) {
         let _ = writeln!(h, "}};");
         let _ = writeln!(h, "#endif");
     }
+    let e = &m.excitation;
+    let _ = writeln!(h, "#ifndef UF_NO_EXCITATION");
+    // C99 has no empty arrays: a heel-only material's per-bin tables are null pointers.
+    let per_bin = if e.bins() > 0 {
+        let _ = writeln!(
+            h,
+            "static const double {id}_exc_threshold[{}] = {{",
+            e.bins()
+        );
+        values(h, e.thresholds().iter().map(|&v| hex_double(v)), 4);
+        let _ = writeln!(
+            h,
+            "}};\nstatic const float {id}_exc_amplitude[{}] = {{",
+            e.bins()
+        );
+        values(h, e.amplitudes().iter().map(|&v| hex_float(v)), 6);
+        let _ = writeln!(h, "}};");
+        (format!("{id}_exc_threshold"), format!("{id}_exc_amplitude"))
+    } else {
+        ("0".to_string(), "0".to_string())
+    };
+    let _ = writeln!(
+        h,
+        "static const uf_excitation {id}_exc = {{{}, {}, uf_exc_steps_{steps}, {}, {}, {}, {}u}};\n#endif",
+        per_bin.0,
+        per_bin.1,
+        quantiles.map_or_else(|| "0".to_string(), |q| format!("uf_exc_quantiles_{q}")),
+        hex_double(e.bins_per_second()),
+        hex_float(e.heel()),
+        e.bins()
+    );
     let table = |on: bool, format: &str, suffix: &str| {
         if on {
             format!("UF_{format}_TABLE({id}_{suffix})")
@@ -221,7 +289,7 @@ fn tables(h: &mut String, i: usize, m: &Exported) {
     let (gain_q, gain_shift) = gain_fixed(m.gain);
     let _ = writeln!(
         h,
-        "const uf_material {id} = {{\"{}\", {}u, {}, {}, {}u, {}, {}, {}u, {}, {}, {}}};",
+        "const uf_material {id} = {{\"{}\", {}u, {}, {}, {}u, {}, {}, {}u, {}, {}, {}, UF_EXC_TABLE({id}_exc)}};",
         c_string(&m.name),
         m.rate.0,
         float(m.band.lo.0 as f32),
@@ -235,6 +303,172 @@ fn tables(h: &mut String, i: usize, m: &Exported) {
         table(m.with_q31, "Q31", "q31"),
     );
     h.push('\n');
+}
+
+/// The excitation's tables that materials share, each written once: the time scales
+/// (one table per rate and duration spread) and the magnitudes (one per shape), 512 and
+/// 1024 bytes where a material's own tables are 12 bytes a bin.
+struct Shared {
+    steps: Vec<[u64; SCALES]>,
+    quantiles: Vec<[u32; QUANTILES]>,
+    /// Per material, its time scales and its magnitudes (none without micro-impacts).
+    of: Vec<(usize, Option<usize>)>,
+}
+
+impl Shared {
+    fn new(export: &Export) -> Self {
+        // By bits: the same bits are the same table.
+        fn index<T: PartialEq, const N: usize>(list: &mut Vec<[T; N]>, table: [T; N]) -> usize {
+            list.iter().position(|t| *t == table).unwrap_or_else(|| {
+                list.push(table);
+                list.len() - 1
+            })
+        }
+        let mut shared = Self {
+            steps: Vec::new(),
+            quantiles: Vec::new(),
+            of: Vec::new(),
+        };
+        for m in &export.materials {
+            let e = &m.excitation;
+            let steps = index(&mut shared.steps, e.steps().map(f64::to_bits));
+            let quantiles = (e.bins() > 0)
+                .then(|| index(&mut shared.quantiles, e.quantiles().map(f32::to_bits)));
+            shared.of.push((steps, quantiles));
+        }
+        shared
+    }
+
+    /// Constant bytes of the shared tables.
+    fn bytes(&self) -> usize {
+        self.steps.len() * SCALES * 8 + self.quantiles.len() * QUANTILES * 4
+    }
+
+    fn write(&self, h: &mut String) {
+        let _ = writeln!(
+            h,
+            "#ifndef UF_NO_EXCITATION
+             /* The excitation's tables that materials share: time scales (per rate and
+              * duration spread) and magnitudes (per shape). */"
+        );
+        for (k, t) in self.steps.iter().enumerate() {
+            let _ = writeln!(
+                h,
+                "static const double uf_exc_steps_{k}[UF_EXC_SCALES] = {{"
+            );
+            values(h, t.iter().map(|&b| hex_double(f64::from_bits(b))), 4);
+            let _ = writeln!(h, "}};");
+        }
+        for (k, t) in self.quantiles.iter().enumerate() {
+            let _ = writeln!(
+                h,
+                "static const float uf_exc_quantiles_{k}[UF_EXC_QUANTILES] = {{"
+            );
+            values(h, t.iter().map(|&b| hex_float(f32::from_bits(b))), 6);
+            let _ = writeln!(h, "}};");
+        }
+        let _ = writeln!(
+            h,
+            "#endif
+"
+        );
+    }
+}
+
+/// The header comment's excitation figures: what each material plays, and what its
+/// tables cost.
+fn excitation_figures(h: &mut String, export: &Export, shared: &Shared) {
+    let _ = writeln!(
+        h,
+        " *
+          * Excitation (uf_exc_*; UF_NO_EXCITATION leaves it out): per material the bins of its
+          * profile, the micro-impacts of a nominal step on average, the heel's share of a
+          * step's energy, the constant bytes of its own tables (12 a bin and a {DESCRIPTOR} B
+          * descriptor on a 32-bit part) and the shared tables it uses (time scales, 512 B;
+          * magnitudes, 1024 B; linked once however many materials use them):"
+    );
+    let _ = writeln!(
+        h,
+        " *   {:<16} {:>4} {:>7} {:>6} {:>6} {:>6} {:>10}",
+        "material", "bins", "events", "heel", "own B", "scales", "magnitudes"
+    );
+    let mut own_total = 0;
+    for (m, &(steps, quantiles)) in export.materials.iter().zip(&shared.of) {
+        let e = &m.excitation;
+        let own = own_bytes(e.bins());
+        own_total += own;
+        let _ = writeln!(
+            h,
+            " *   {:<16} {:>4} {:>7.1} {:>6.3} {:>6} {:>6} {:>10}",
+            comment_safe(&m.name),
+            e.bins(),
+            expected_events(&m.excitation),
+            f64::from(e.heel()).powi(2),
+            own,
+            steps,
+            quantiles.map_or_else(|| "-".to_string(), |q| q.to_string())
+        );
+    }
+    let _ = writeln!(
+        h,
+        " * All of them: {} B ({} B their own, {} B shared: {} time-scale and {} magnitude tables).",
+        own_total + shared.bytes(),
+        own_total,
+        shared.bytes(),
+        shared.steps.len(),
+        shared.quantiles.len()
+    );
+}
+
+/// `uf_excitation`'s size on a 32-bit part: four pointers, a double, a float and a
+/// `uint16_t`, padded to the double's alignment.
+const DESCRIPTOR: usize = 32;
+
+/// Constant bytes of a material's own excitation tables on a 32-bit part.
+fn own_bytes(bins: usize) -> usize {
+    bins * (8 + 4) + DESCRIPTOR
+}
+
+/// The micro-impacts of a nominal step (speed 1 for its whole profile) on average.
+fn expected_events(e: &crate::excitation::Tables) -> f64 {
+    e.thresholds().iter().sum::<f64>() / 4_294_967_296.0 / e.bins_per_second()
+}
+
+/// Table rows: `per_line` literals to a line.
+fn values(h: &mut String, literals: impl Iterator<Item = String>, per_line: usize) {
+    let literals: Vec<String> = literals.collect();
+    for row in literals.chunks(per_line) {
+        let _ = writeln!(h, "    {},", row.join(", "));
+    }
+}
+
+/// A hexadecimal `double` literal: exactly `v` in any C99 compiler, where a decimal one
+/// may be rounded either way (C99 6.4.4.2) and the excitation must be bit-exact.
+fn hex_double(v: f64) -> String {
+    if !v.is_finite() {
+        return "0.0".to_string();
+    }
+    let bits = v.to_bits();
+    let sign = if v.is_sign_negative() { "-" } else { "" };
+    let (biased, mantissa) = ((bits >> 52) & 0x7ff, bits & ((1 << 52) - 1));
+    if biased == 0 && mantissa == 0 {
+        return format!("{sign}0x0p+0");
+    }
+    // Subnormals are 0.m 2^-1022.
+    let (lead, exponent) = if biased == 0 {
+        (0, -1022)
+    } else {
+        (1, biased as i64 - 1023)
+    };
+    let digits = format!("{mantissa:013x}");
+    let digits = digits.trim_end_matches('0');
+    let point = if digits.is_empty() { "" } else { "." };
+    format!("{sign}0x{lead}{point}{digits}p{exponent:+}")
+}
+
+/// A hexadecimal `float` literal: exact, as [`hex_double`] (every `f32` is a `f64`).
+fn hex_float(v: f32) -> String {
+    format!("{}f", hex_double(f64::from(v)))
 }
 
 /// `gain` as `q 2^-shift` with `q` a 16-bit integer and the largest shift (at most 30)
@@ -335,6 +569,44 @@ typedef struct { float x[2]; float y[2]; } uf_f32_state;
 typedef struct { int32_t x[2]; int32_t y[2]; } uf_q15_state;
 typedef struct { int32_t x[2]; int32_t y[2]; int64_t e[2]; } uf_q31_state;
 
+/* A material's excitation, at the material's rate: what drives its cascade for a step.
+ * A step of intensity i is a heel impulse, i heel, then micro-impacts on a step clock
+ * that advances by speed step[k] seconds a sample (k, the step's time scale, drawn at
+ * the strike); while the clock is in bin b = floor(clock bins_per_second), a sample is
+ * due threshold[b] dtau 2^-32 of them (dtau the clock's advance), each i amplitude[b]
+ * quantile[j] with a random j and sign. The step ends when the clock leaves the last bin.
+ * A material whose step is one impulse has no bins, and null threshold, amplitude and
+ * quantile pointers. Tables rather than exp and log, and the values as hexadecimal
+ * literals (exact in any C99 compiler): uf_exc_next gives the bits the Rust generator
+ * (underfoot::excitation::Generator) gives for the same seed and calls, where float and
+ * double are IEEE single and double evaluated at their own precision (FLT_EVAL_METHOD 0:
+ * ARM with or without an FPU, x86-64; not x87) and nothing is contracted into fused
+ * multiply-adds (ISO C mode). */
+#define UF_EXC_SCALES 64u
+#define UF_EXC_QUANTILES 256u
+#define UF_EXC_MAX_DRAWS 16u
+typedef struct {
+    const double *threshold;  /* per bin: micro-impacts per second of step clock, times 2^32 */
+    const float *amplitude;   /* per bin: their RMS amplitude */
+    const double *step;       /* UF_EXC_SCALES: seconds of step clock a sample at speed 1 */
+    const float *quantile;    /* UF_EXC_QUANTILES unit-RMS magnitudes */
+    double bins_per_second;   /* of step clock */
+    float heel;               /* the heel impulse at intensity 1 */
+    uint16_t bins;
+} uf_excitation;
+
+/* One channel's excitation generator (uf_exc_init before the first call). */
+typedef struct {
+    uint64_t rng;             /* SplitMix64, advanced only while a step plays */
+    double pos;               /* the step clock, seconds */
+    double step;              /* this step's seconds of clock a sample at speed 1 */
+    uint64_t events;          /* micro-impacts played so far (heels not counted) */
+    float gain;               /* this step's intensity */
+    uint8_t active;           /* a step is playing */
+    uint8_t heel_due;         /* its heel impulse is the next sample's */
+    uint8_t free_running;     /* announced without force: the clock runs at speed 1 */
+} uf_excitation_state;
+
 /* A material. Its model's output is `gain` times the cascade's; the cascade runs at
  * `rate`, its fit holds over band_lo..band_hi Hz. A format not exported (or left out,
  * below) is a null pointer.
@@ -345,7 +617,8 @@ typedef struct { int32_t x[2]; int32_t y[2]; int64_t e[2]; } uf_q31_state;
  * bounds what reaches the skin whatever the gain:
  *   y = uf_q31_clamp(uf_q31_gain(m, uf_q15_cascade(m->q15, st, m->sections, x)), ceiling);
  * A gain above 1 (a quiet fit scaled up) can saturate there: scale the drive down
- * instead when the material's loudest strikes must stay linear. */
+ * instead when the material's loudest strikes must stay linear. `excitation` is what
+ * drives the cascade for a step (null under UF_NO_EXCITATION). */
 typedef struct {
     const char *name;
     uint32_t rate;
@@ -358,6 +631,7 @@ typedef struct {
     const uf_f32_section *f32;
     const uf_q15_section *q15;
     const uf_q31_section *q31;
+    const uf_excitation *excitation;
 } uf_material;
 
 /* The hard limiter every output to skin must end in: instantaneous attack, smooth
@@ -371,7 +645,8 @@ const LINKING: &str = r#"/* Each material is an object of its own: firmware that
  * with -Wl,--gc-sections. uf_materials and uf_find reach every material: define
  * UF_NO_INDEX where the implementation is compiled to leave them out. Likewise
  * UF_NO_F32, UF_NO_Q15 and UF_NO_Q31 leave out a format's tables (its pointers are then
- * null) and its functions. */
+ * null) and its functions, and UF_NO_EXCITATION the excitation's tables and generator,
+ * for firmware that drives the cascade with a signal of its own. */
 "#;
 
 const TABLE_MACROS: &str = r#"#ifdef UF_NO_F32
@@ -388,6 +663,11 @@ const TABLE_MACROS: &str = r#"#ifdef UF_NO_F32
 #define UF_Q31_TABLE(t) 0
 #else
 #define UF_Q31_TABLE(t) t
+#endif
+#ifdef UF_NO_EXCITATION
+#define UF_EXC_TABLE(t) 0
+#else
+#define UF_EXC_TABLE(t) (&t)
 #endif
 
 "#;
@@ -429,6 +709,28 @@ int32_t uf_q31_gain(const uf_material *m, int32_t y);
  * for a release time T at rate fs. */
 void uf_limiter_init(uf_limiter *limiter, float ceiling, float release);
 float uf_limiter_tick(uf_limiter *limiter, float x);
+
+/* The excitation generator (see uf_excitation), never allocating; per sample
+ *   e = uf_exc_next(&ex, m, speed);
+ *   y = uf_f32_cascade(m->f32, st, m->sections, e);
+ * and `gain` and the limit after it, as above. uf_exc_init seeds its random stream: one
+ * seed per channel, or two feet step alike. */
+void uf_exc_init(uf_excitation_state *state, uint64_t seed);
+/* A heel strike of `intensity` (the step's loading rate over the nominal one): the heel
+ * impulse at the next sample, then the train on the clock the force drives. It replaces
+ * a step still playing; an intensity that is not finite and positive does nothing. */
+void uf_exc_strike(uf_excitation_state *state, const uf_material *m, float intensity);
+/* A step announced without force: as uf_exc_strike, on a clock at speed 1. */
+void uf_exc_step(uf_excitation_state *state, const uf_material *m, float intensity);
+/* Silences the generator; its random stream carries on. */
+void uf_exc_stop(uf_excitation_state *state);
+/* The next sample for a clock speed `speed` = |dF/dt| / (W UF_EXC_ACTIVITY), that is
+ * |F[n] - F[n-1]| rate / (W UF_EXC_ACTIVITY) with W the walker's weight in N (0 when
+ * the foot is still: the train waits; negative, NaN and infinite count as 0). */
+float uf_exc_next(uf_excitation_state *state, const uf_material *m, float speed);
+/* `n` samples, the same as `n` calls of uf_exc_next (bit for bit); `out` may be `speed`. */
+void uf_exc_block(uf_excitation_state *state, const uf_material *m, const float *speed,
+                  float *out, unsigned n);
 "#;
 
 const IMPLEMENTATION: &str = r#"#if (-1 >> 1) != -1
@@ -639,6 +941,96 @@ float uf_limiter_tick(uf_limiter *limiter, float x) {
     y = x * limiter->gain;
     return y > limiter->ceiling ? limiter->ceiling : (y < -limiter->ceiling ? -limiter->ceiling : y);
 }
+
+#ifndef UF_NO_EXCITATION
+/* Each operation below is the Rust generator's, in its order: integer arithmetic,
+ * correctly rounded + - * and comparisons, exact conversions. */
+static uint64_t uf_exc_draw(uf_excitation_state *state) {
+    uint64_t z = state->rng += UINT64_C(0x9E3779B97F4A7C15);
+    z = (z ^ (z >> 30)) * UINT64_C(0xBF58476D1CE4E5B9);
+    z = (z ^ (z >> 27)) * UINT64_C(0x94D049BB133111EB);
+    return z ^ (z >> 31);
+}
+
+void uf_exc_init(uf_excitation_state *state, uint64_t seed) {
+    state->rng = seed;
+    state->pos = 0.0;
+    state->step = 0.0;
+    state->events = 0;
+    state->gain = 0.0f;
+    state->active = state->heel_due = state->free_running = 0;
+}
+
+static void uf_exc_start(uf_excitation_state *state, const uf_material *m, float intensity,
+                         uint8_t free_running) {
+    /* x - x is 0 only for a finite x; a refused step draws nothing. */
+    if (!(intensity - intensity == 0.0f && intensity > 0.0f)) return;
+    state->step = m->excitation->step[uf_exc_draw(state) >> 58];
+    state->pos = 0.0;
+    state->gain = intensity;
+    state->heel_due = 1;
+    state->active = 1;
+    state->free_running = free_running;
+}
+
+void uf_exc_strike(uf_excitation_state *state, const uf_material *m, float intensity) {
+    uf_exc_start(state, m, intensity, 0);
+}
+
+void uf_exc_step(uf_excitation_state *state, const uf_material *m, float intensity) {
+    uf_exc_start(state, m, intensity, 1);
+}
+
+void uf_exc_stop(uf_excitation_state *state) {
+    state->active = 0;
+    state->heel_due = 0;
+}
+
+float uf_exc_next(uf_excitation_state *state, const uf_material *m, float speed) {
+    const uf_excitation *e = m->excitation;
+    float y = 0.0f;
+    double b, v, dtau;
+    unsigned bin;
+    if (!state->active) return 0.0f;
+    if (state->heel_due) {
+        state->heel_due = 0;
+        y = e->heel * state->gain;
+    }
+    /* Rust's saturating `as usize`, without C's undefined conversions: NaN and anything
+     * below 1 are bin 0, anything past the table its end. */
+    b = state->pos * e->bins_per_second;
+    bin = b >= (double)e->bins ? (unsigned)e->bins : (b >= 1.0 ? (unsigned)b : 0u);
+    if (bin >= (unsigned)e->bins) {
+        state->active = 0;
+        return y;
+    }
+    v = state->free_running ? 1.0 : (speed > 0.0f && speed - speed == 0.0f ? (double)speed : 0.0);
+    dtau = v * state->step;
+    if (dtau > 0.0) {
+        /* dtau threshold 2^-32 micro-impacts are due: a 32-bit draw under what is left of
+         * them times 2^32 is one, so each whole one is certain; at most UF_EXC_MAX_DRAWS. */
+        double due = e->threshold[bin] * dtau;
+        unsigned draws;
+        for (draws = 0; due > 0.0 && draws < UF_EXC_MAX_DRAWS; ++draws) {
+            uint64_t r = uf_exc_draw(state);
+            if ((double)(uint32_t)(r >> 32) < due) {
+                float a = e->amplitude[bin] * e->quantile[(r >> 24) & 0xFFu] * state->gain;
+                y += (r & (UINT64_C(1) << 23)) == 0 ? a : -a;
+                ++state->events;
+            }
+            due -= 4294967296.0;
+        }
+        state->pos += dtau;
+    }
+    return y;
+}
+
+void uf_exc_block(uf_excitation_state *state, const uf_material *m, const float *speed,
+                  float *out, unsigned n) {
+    unsigned i;
+    for (i = 0; i < n; ++i) out[i] = uf_exc_next(state, m, speed[i]);
+}
+#endif
 "#;
 
 #[cfg(test)]

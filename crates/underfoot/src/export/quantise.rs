@@ -32,6 +32,7 @@
 
 use super::check::{Checker, FormatCheck, margin};
 use super::{ExportConfig, ExportError, QUIETEST_LEVEL};
+use crate::excitation::Tables;
 use crate::material::MaterialModel;
 use crate::signal::fixed::{
     F32Section, F32State, Q15Section, Q15State, Q31Section, Q31State, f32_cascade, q15_cascade,
@@ -73,6 +74,9 @@ pub struct Exported {
     pub with_q15: bool,
     /// Whether the Q31 sections are exported.
     pub with_q31: bool,
+    /// Its excitation at its rate (the heel impulse alone for a material without one):
+    /// the tables the header's generator plays.
+    pub excitation: Tables,
 }
 
 /// Quantises one model in every format and checks each (see the module doc).
@@ -100,6 +104,8 @@ pub fn prepare(model: &MaterialModel, config: &ExportConfig) -> Result<Exported,
             model.band_hz, model.sample_rate
         )));
     }
+    let excitation = Tables::new(&model.excitation_or_heel(), model.sample_rate)
+        .map_err(|e| bad(e.to_string()))?;
     if !(config.grid_points >= 2
         && config.tolerance.0 > 0.0
         && config.margin_fraction >= 0.0
@@ -260,6 +266,7 @@ pub fn prepare(model: &MaterialModel, config: &ExportConfig) -> Result<Exported,
         impulse_samples: n,
         with_q15: config.q15,
         with_q31: config.q31,
+        excitation,
     })
 }
 

@@ -3,10 +3,12 @@
 //! [`Ground`] is what the engine plays for `--model physical`, and what the estimation
 //! renders, so the two hear the same thing. Its input is the step's excitation
 //! ([`crate::excitation`]), the same signal the IIR voice filters: a heel impulse and a
-//! train of micro-impulses on a clock the foot drives. Each non-zero sample `x` is a
-//! strike of the surface ([`Aggregate::process_impulses`]) with energy `x² / ē` times the
-//! hammer's mean, `ē` the mean energy of one of the material's impulses: an impulse of
-//! mean energy strikes at the hammer's RMS speed. A solid (one heavy hammer) answers the
+//! train of micro-impulses on a clock the foot drives. Each non-zero sample `x` strikes
+//! the surface ([`Aggregate::process_impulses`]) with energy `x² / ē` times the hammer's
+//! mean, `ē` the mean energy of one of the material's impulses: an impulse of mean energy
+//! strikes at the hammer's RMS speed. Impulses within 2 ms of the last strike merge into
+//! the next: a dense train (thousands a second) would take the few impacts in flight
+//! from each other before their surfaces could ring. A solid (one heavy hammer) answers the
 //! heel with one impact and a train, where it has one, with light ones; an aggregate (a
 //! grain) answers every impulse with a grain of random size. The sign of an impulse, which
 //! keeps the IIR voice's train white, means nothing to a hammer: a strike is a strike.

@@ -5,7 +5,9 @@
 //! and scores it against the measured response of the one left out, by the same
 //! gain-aligned distance, on the model's metric grid. Each recording is left out in turn.
 //! Beside it, the in-sample figure: the model fitted on all recordings, against the same
-//! recording alone. When the left-out distance is close to the in-sample one, the
+//! recording alone. Each entry keeps the model fitted on the others and the left-out
+//! recording's steps measured in time, so that a caller with an engine can render the one
+//! and compare it with the other. When the left-out distance is close to the in-sample one, the
 //! recordings were enough; when it is much larger, the model has learnt the particular
 //! steps rather than the ground, and more recordings are needed. With one recording there
 //! is nothing to leave out, and the function says so by returning `None`.
@@ -13,6 +15,7 @@
 use super::QualityConfig;
 use super::disagreement::aligned_lsd_db;
 use crate::analysis::measure;
+use crate::analysis::steps::{StepConfig, StepSummary, describe_all, summarize};
 use crate::material::MaterialModel;
 use crate::material::build::{BuildConfig, BuildError, build_material};
 use crate::recording::Recording;
@@ -33,6 +36,12 @@ pub struct HeldOut {
     pub in_sample_lsd: Decibels,
     /// The held-out recording's level relative to the left-out model's (the gain taken out).
     pub gain: Decibels,
+    /// The model fitted on the others (filter, excitation, level), to render and compare
+    /// with this recording in time.
+    pub model: MaterialModel,
+    /// This recording's steps measured in time ([`crate::analysis::steps`]); `None` when
+    /// the step analysis finds none.
+    pub recorded: Option<StepSummary>,
 }
 
 /// The leave-one-recording-out distances of a material; see the [module docs](self).
@@ -109,6 +118,11 @@ pub fn leave_one_out(
             .map(|(m, s)| m - s)
             .sum::<f64>()
             / measured_db.len().max(1) as f64;
+        let steps_cfg = StepConfig {
+            band: cfg.analysis.band,
+            ..StepConfig::default()
+        };
+        let steps = describe_all(&rec.samples, rec.rate, None, &steps_cfg)?;
         held_out.push(HeldOut {
             file: rec.name.clone(),
             strikes: measured.strikes.len(),
@@ -116,6 +130,8 @@ pub fn leave_one_out(
             lsd: Decibels(aligned_lsd_db(&model_db, &measured_db)),
             in_sample_lsd: Decibels(aligned_lsd_db(&full_db, &measured_db)),
             gain: Decibels(gain),
+            recorded: (!steps.is_empty()).then(|| summarize(&steps, &steps_cfg)),
+            model,
         });
     }
     Ok(Some(LeaveOneOut { held_out }))
