@@ -23,6 +23,8 @@
 //! (`in_sample_lsd_db`), and their means; `null` with a single recording.
 
 use serde::Serialize;
+use underfoot::analysis::steps::StepSummary;
+use underfoot::material::evaluate::StepComparison;
 use underfoot::material::quality::LeaveOneOut;
 use underfoot::material::{MaterialModel, SourceFile};
 use underfoot::units::{Band, SampleRate};
@@ -50,6 +52,53 @@ pub struct FitReportEntry<'a> {
     pub poor_fit: bool,
     pub strike_to_noise_db: Vec<RecordingFigure>,
     pub leave_one_out: Option<LeaveOneOutReport>,
+    /// The recordings' steps in time and renders beside them (`--report` only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub time: Option<TimeScore>,
+    /// The playback level re the recordings, dB.
+    pub level_db: f64,
+}
+
+/// The steps in time: the recordings', and renders of each model beside them.
+#[derive(Debug, Serialize)]
+pub struct TimeScore {
+    pub recorded: Option<StepSummary>,
+    pub iir: Option<RenderedSteps>,
+    pub physical: Option<RenderedSteps>,
+}
+
+impl TimeScore {
+    pub fn of(
+        model: &MaterialModel,
+        iir: Option<&StepComparison>,
+        physical: Option<&StepComparison>,
+    ) -> Self {
+        Self {
+            recorded: model.time.clone(),
+            iir: iir.map(RenderedSteps::of),
+            physical: physical.map(RenderedSteps::of),
+        }
+    }
+}
+
+/// Rendered steps, measured as recorded ones are, and how far from them.
+#[derive(Debug, Clone, Serialize)]
+pub struct RenderedSteps {
+    pub steps: StepSummary,
+    /// Gain-aligned LSD between the rendered and the recorded average step spectra, dB.
+    pub spectrum_db: f64,
+    /// The rendered steps' level over the recorded ones' (playback level taken out), dB.
+    pub level_db: f64,
+}
+
+impl RenderedSteps {
+    pub fn of(c: &StepComparison) -> Self {
+        Self {
+            steps: c.rendered.clone(),
+            spectrum_db: c.spectrum_db,
+            level_db: c.level_db,
+        }
+    }
 }
 
 /// One recording's figure in a [`FitReportEntry`].
@@ -76,6 +125,12 @@ pub struct HeldOutReport {
     pub lsd_db: f64,
     pub in_sample_lsd_db: f64,
     pub gain_db: f64,
+    /// In time: the left-out recording's steps, and steps of the model fitted on the others
+    /// rendered and compared with them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub recorded: Option<StepSummary>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rendered: Option<RenderedSteps>,
 }
 
 impl LeaveOneOutReport {
@@ -91,6 +146,8 @@ impl LeaveOneOutReport {
                     lsd_db: h.lsd.0,
                     in_sample_lsd_db: h.in_sample_lsd.0,
                     gain_db: h.gain.0,
+                    recorded: h.recorded.clone(),
+                    rendered: None,
                 })
                 .collect(),
             mean_lsd_db: loo.mean_lsd().0,
@@ -165,6 +222,8 @@ impl<'a> FitReportEntry<'a> {
             sources: &m.sources,
             poor_fit: m.fit.poor_fit,
             strike_to_noise_db: Vec::new(),
+            time: None,
+            level_db: m.level_db,
             leave_one_out: None,
         }
     }

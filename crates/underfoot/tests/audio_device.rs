@@ -867,8 +867,8 @@ fn jack_loopback_adaptation_flattens_a_simulated_leg_within_30_s() {
         }
         sos.filter_with_state(&mut wide[..frames], &mut state);
         for (frame, w) in out.chunks_exact_mut(channels).zip(&wide[..frames]) {
-            // Accelerometer noise about 70 dB under the steps' peaks.
-            frame.fill((w + 1.5e-5 * rng.normal()) as f32);
+            // Accelerometer noise about 65 dB under the steps' peaks.
+            frame.fill((w + 1e-5 * rng.normal()) as f32);
         }
     })
     .expect("the plant's output");

@@ -42,10 +42,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use clap::Args;
 use serde::Serialize;
-use underfoot::analysis::steps::StepSummary;
 use underfoot::atomic_file::OutputFile;
 use underfoot::material::build::{BuildConfig, build_material};
-use underfoot::material::evaluate::StepComparison;
 use underfoot::material::library::validate_name;
 use underfoot::physical::estimate::{held_out_seed, score_render};
 use underfoot::recording;
@@ -54,6 +52,7 @@ use underfoot::units::Hz;
 
 use crate::output::emit;
 use crate::plot::{self, Omitted, Panel};
+use crate::report::TimeScore;
 use crate::steps::{TimeRow, render_and_compare, time_table};
 
 /// Arguments of `underfoot compare`.
@@ -94,33 +93,6 @@ struct Row {
     iir: IirScore,
     physical: PhysicalScore,
     time: TimeScore,
-}
-
-/// The steps in time: the recordings', and renders of each model beside them.
-#[derive(Debug, Serialize)]
-struct TimeScore {
-    recorded: Option<StepSummary>,
-    iir: Option<RenderedSteps>,
-    physical: Option<RenderedSteps>,
-}
-
-#[derive(Debug, Serialize)]
-struct RenderedSteps {
-    steps: StepSummary,
-    /// Gain-aligned LSD between the rendered and the recorded average step spectra.
-    spectrum_db: f64,
-    /// The rendered steps' level over the recorded ones' (playback level taken out).
-    level_db: f64,
-}
-
-impl RenderedSteps {
-    fn of(c: &StepComparison) -> Self {
-        Self {
-            steps: c.rendered.clone(),
-            spectrum_db: c.spectrum_db,
-            level_db: c.level_db,
-        }
-    }
 }
 
 #[derive(Debug, Serialize)]
@@ -283,11 +255,7 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
         let physical_steps = render_and_compare(&model, SynthModel::Physical, steps)
             .with_context(|| format!("rendering the physical model's steps of {name}"))?;
         let mut row = row;
-        row.time = TimeScore {
-            recorded: model.time.clone(),
-            iir: iir.as_ref().map(RenderedSteps::of),
-            physical: physical_steps.as_ref().map(RenderedSteps::of),
-        };
+        row.time = TimeScore::of(&model, iir.as_ref(), physical_steps.as_ref());
         emit(&format!(
             "{:<12} {:>10.4} {:>9.2} {:>6} | {:>10.4} {:>9.2} {:>12.2} {:>9} {:>5}\n",
             row.name,

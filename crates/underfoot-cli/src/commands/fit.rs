@@ -23,17 +23,22 @@ use underfoot::atomic_file::OutputFile;
 use underfoot::fit::{MAX_FILTER_ORDER, OrderChoice};
 use underfoot::io::spec::{self, SpecError};
 use underfoot::material::Library;
-use underfoot::material::build::{BuildConfig, BuildError, Progress, build_material};
+use underfoot::material::MaterialModel;
+use underfoot::material::build::{BuildConfig, BuildError, Progress, build_material_with_report};
+use underfoot::material::evaluate::StepComparison;
 use underfoot::material::library::validate_name;
-use underfoot::material::quality::{Disagreement, QualityError, leave_one_out};
+use underfoot::material::quality::{Disagreement, HeldOut, QualityError, leave_one_out};
 use underfoot::recording::{self, CsvSpec};
+use underfoot::synthesis::SynthModel;
 use underfoot::units::{Band, Decibels, SampleRate};
 
 use crate::output::emit;
 use crate::plot::{self, Omitted, Panel};
 use crate::report::{
-    FitReport, FitReportEntry, LeaveOneOutReport, RecordingFigure, leave_one_out_table,
+    FitReport, FitReportEntry, LeaveOneOutReport, RecordingFigure, RenderedSteps, TimeScore,
+    leave_one_out_table,
 };
+use crate::steps::{TimeRow, render_and_compare, time_table};
 
 /// Arguments of `underfoot fit`.
 #[derive(Debug, Args)]
@@ -302,37 +307,38 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     let fitting = bar(0, "fitting  {spinner} {pos} orders tried {msg}");
     let started = Instant::now();
     let mut checked = None;
-    let model = build_material(&args.material, &recordings, &cfg, &mut |p| match p {
-        Progress::Checked(c) => {
-            if let Some(w) = c.disagreement.as_ref().and_then(Disagreement::warning) {
-                fitting.suspend(|| eprintln!("underfoot: warning: {:?}: {w}", args.material));
+    let (model, built) =
+        build_material_with_report(&args.material, &recordings, &cfg, &mut |p| match p {
+            Progress::Checked(c) => {
+                if let Some(w) = c.disagreement.as_ref().and_then(Disagreement::warning) {
+                    fitting.suspend(|| eprintln!("underfoot: warning: {:?}: {w}", args.material));
+                }
+                checked = Some(c.clone());
             }
-            checked = Some(c.clone());
-        }
-        Progress::Measured { strikes, .. } => fitting.set_message(format!("{strikes} strikes")),
-        Progress::OrderTried {
-            order,
-            lsd_db,
-            nrmse,
-            ..
-        } => {
-            fitting.inc(1);
-            fitting.set_message(format!(
-                "(last: order {order}, LSD {lsd_db:.2} dB, NRMSE {nrmse:.4})"
-            ));
-        }
-        Progress::PhysicalFailed { reason } => {
-            fitting.suspend(|| {
+            Progress::Measured { strikes, .. } => fitting.set_message(format!("{strikes} strikes")),
+            Progress::OrderTried {
+                order,
+                lsd_db,
+                nrmse,
+                ..
+            } => {
+                fitting.inc(1);
+                fitting.set_message(format!(
+                    "(last: order {order}, LSD {lsd_db:.2} dB, NRMSE {nrmse:.4})"
+                ));
+            }
+            Progress::PhysicalFailed { reason } => {
+                fitting.suspend(|| {
                 eprintln!(
                     "underfoot: warning: no physical model for {:?} (the filter is kept): {reason}",
                     args.material
                 );
             });
-        }
-        _ => {}
-    })
-    .map_err(with_flag_hint)
-    .with_context(|| format!("fitting material {:?}", args.material))?;
+            }
+            _ => {}
+        })
+        .map_err(with_flag_hint)
+        .with_context(|| format!("fitting material {:?}", args.material))?;
     let elapsed = started.elapsed().as_secs_f64();
     fitting.finish_and_clear();
     if model.fit.poor_fit {
@@ -377,6 +383,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         args.out.display(),
         if replaced { "replaced" } else { "added" }
     ))?;
+    emit(&step_line(&model, built.excitation.as_ref()))?;
 
     // The library is saved by now; what follows is extra, and its errors say so.
     let saved = || format!("(the material was saved to {})", args.out.display());
@@ -395,8 +402,52 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
             ))?,
         }
     }
+    // In time: the model's steps rendered beside the recordings', and each recording left
+    // out against steps of the model fitted on the others.
+    let mut time = None;
+    let mut held_out_time = Vec::new();
+    if report_out.is_some() || loo.is_some() {
+        let iir = render_and_compare(&model, SynthModel::Iir, REPORT_STEPS).with_context(saved)?;
+        let physical =
+            render_and_compare(&model, SynthModel::Physical, REPORT_STEPS).with_context(saved)?;
+        emit(&format!(
+            "the steps in time: recorded / rendered by the filter / by the physical model \
+             ({REPORT_STEPS} steps of a generated walk, measured as the recordings are):\n{}",
+            time_table(&[TimeRow {
+                name: &model.name,
+                model: &model,
+                iir: iir.as_ref(),
+                physical: physical.as_ref(),
+            }])
+        ))?;
+        time = Some(TimeScore::of(&model, iir.as_ref(), physical.as_ref()));
+        if let Some(Some(loo)) = &loo {
+            let mut rows = Vec::new();
+            for h in &loo.held_out {
+                let rendered = match &h.recorded {
+                    Some(recorded) => {
+                        let against = MaterialModel {
+                            time: Some(recorded.clone()),
+                            ..h.model.clone()
+                        };
+                        render_and_compare(&against, SynthModel::Iir, REPORT_STEPS)
+                            .with_context(saved)?
+                    }
+                    None => None,
+                };
+                rows.push((h, rendered));
+            }
+            emit(&format!(
+                "leave one recording out, in time (each recording's steps against steps of the \
+                 model fitted on the others):\n{}",
+                held_out_time_table(&rows)
+            ))?;
+            held_out_time = rows.into_iter().map(|(_, r)| r).collect();
+        }
+    }
     if let Some(out) = &report_out {
         let mut entry = FitReportEntry::of(&model);
+        entry.time = time;
         entry.strike_to_noise_db = checked
             .iter()
             .flat_map(|c| &c.strike_to_noise)
@@ -405,7 +456,13 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
                 db: s.snr.0,
             })
             .collect();
-        entry.leave_one_out = loo.flatten().as_ref().map(LeaveOneOutReport::of);
+        entry.leave_one_out = loo.flatten().as_ref().map(|l| {
+            let mut r = LeaveOneOutReport::of(l);
+            for (h, rendered) in r.held_out.iter_mut().zip(&held_out_time) {
+                h.rendered = rendered.as_ref().map(RenderedSteps::of);
+            }
+            r
+        });
         let report = FitReport {
             materials: vec![entry],
         };
@@ -438,6 +495,86 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// Steps of a generated walk rendered per model for `--report`'s tables in time.
+const REPORT_STEPS: usize = 24;
+
+/// What a step of the material is made of, as fitted: its heel, its train, its level, and
+/// the recordings' figures beside the calibration render's.
+fn step_line(
+    model: &MaterialModel,
+    estimate: Option<&underfoot::excitation::estimate::Estimate>,
+) -> String {
+    let level = format!("level {:+.1} dB re the recordings", model.level_db);
+    match (&model.excitation, estimate) {
+        (Some(e), Some(est)) if e.energy.is_empty() => format!(
+            "  step: one impact (a solid: the recordings hold no train); D90 {:.0} ms; {level}\n",
+            est.recorded.duration_ms
+        ),
+        (Some(e), Some(est)) => format!(
+            "  step: heel {:.0}% of its energy, then about {:.0} micro-impacts over {:.0} ms of step \
+             clock; recorded / calibration render: D90 {:.0} / {:.0} ms, {:.0} / {:.0} micro-events, \
+             crest {:.1} / {:.1} dB, spread {} / {} dB; {level}\n",
+            100.0 * e.heel,
+            e.expected_events(),
+            1e3 * e.span_s(),
+            est.target.duration_ms,
+            est.rendered.duration_ms,
+            est.target.events,
+            est.rendered.events,
+            est.target.crest_db,
+            est.rendered.crest_db,
+            est.target
+                .spread_db
+                .map_or("-".into(), |v| format!("{v:.2}")),
+            est.rendered
+                .spread_db
+                .map_or("-".into(), |v| format!("{v:.2}")),
+        ),
+        _ => format!("  step: one impulse (no excitation was fitted); {level}\n"),
+    }
+}
+
+/// The leave-one-out table in time.
+fn held_out_time_table(rows: &[(&HeldOut, Option<StepComparison>)]) -> String {
+    use crate::report::{Align, table};
+    let pair = |a: Option<f64>, b: Option<f64>, f: &dyn Fn(f64) -> String| {
+        format!("{} / {}", a.map_or("-".into(), f), b.map_or("-".into(), f))
+    };
+    let cells: Vec<Vec<String>> = rows
+        .iter()
+        .map(|(h, c)| {
+            let rec = h.recorded.as_ref();
+            let ren = c.as_ref().map(|c| &c.rendered);
+            vec![
+                h.file.clone(),
+                pair(
+                    rec.map(|s| s.duration_ms),
+                    ren.map(|s| s.duration_ms),
+                    &|v| format!("{v:.0}"),
+                ),
+                pair(rec.map(|s| s.events), ren.map(|s| s.events), &|v| {
+                    format!("{v:.0}")
+                }),
+                pair(rec.map(|s| s.crest_db), ren.map(|s| s.crest_db), &|v| {
+                    format!("{v:.1}")
+                }),
+                c.as_ref()
+                    .map_or("-".into(), |c| format!("{:.2}", c.spectrum_db)),
+            ]
+        })
+        .collect();
+    table(
+        &[
+            ("left out", Align::Left),
+            ("D90 ms rec/model", Align::Right),
+            ("micro-events", Align::Right),
+            ("crest dB", Align::Right),
+            ("spectrum dB", Align::Right),
+        ],
+        &cells,
+    )
 }
 
 #[cfg(test)]

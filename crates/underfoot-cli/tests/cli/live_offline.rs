@@ -5,8 +5,9 @@
 //! `run` reports its sensor clock's anchor ("t = T s at frame A"); the documented rule
 //! puts a reading of sensor time `t` at frame `A + round((t - T) fs)`, and `render` at
 //! `round(t fs)` (the walk starts at 0 s), so the live WAV is the offline one shifted by
-//! `A - round(T fs)`. Each step's peak must be within 0.5 dB and its onset within one
-//! sample of that.
+//! `A - round(T fs)`. Each step's peak must be within 0.5 dB, its onset within one
+//! sample of that, and its duration (D90) and micro-event count the same, measured by the
+//! tests' own step analysis ([`crate::step_stats`]).
 
 use crate::common::run;
 use std::path::Path;
@@ -45,25 +46,13 @@ fn number_after(text: &str, key: &str) -> f64 {
         .unwrap_or_else(|_| panic!("{key:?} in {text}"))
 }
 
-/// Steps of a render: each step's onset, the first sample above -30 dBFS at least 0.3 s
-/// after the previous onset, and its peak (dBFS) up to the next one.
-fn steps(y: &[f32]) -> Vec<(usize, f64)> {
-    let threshold = 10f32.powf(-30.0 / 20.0);
-    let gap = (0.3 * RATE) as usize;
-    let mut onsets: Vec<usize> = Vec::new();
-    for (i, v) in y.iter().enumerate() {
-        if v.abs() > threshold && onsets.last().is_none_or(|&o| i > o + gap) {
-            onsets.push(i);
-        }
-    }
-    onsets
+/// Steps of a render (onset, peak in dBFS, D90 in ms, micro-events), measured as the
+/// issue measures them.
+fn steps(y: &[f32]) -> Vec<(usize, f64, f64, usize)> {
+    let x: Vec<f64> = y.iter().map(|v| f64::from(*v)).collect();
+    crate::step_stats::steps(&x, RATE as u32)
         .iter()
-        .enumerate()
-        .map(|(k, &o)| {
-            let end = onsets.get(k + 1).copied().unwrap_or(y.len());
-            let peak = y[o..end].iter().fold(0.0f32, |m, v| m.max(v.abs()));
-            (o, 20.0 * f64::from(peak).log10())
-        })
+        .map(|s| (s.onset, 20.0 * s.peak.log10(), s.d90_ms, s.events))
         .collect()
 }
 
@@ -138,14 +127,23 @@ fn run_plays_the_walk_as_render_does_for_buffers_16_to_1024() {
                 g.0,
                 w.0
             );
+            assert!(
+                (w.2 - g.2).abs() < 0.05 && w.3 == g.3,
+                "buffer {buffer}, step {k}: D90 {:.1} ms and {} micro-events live, \
+                 {:.1} ms and {} offline",
+                g.2,
+                g.3,
+                w.2,
+                w.3
+            );
         }
         eprintln!(
             "buffer {buffer}: peaks offline {:?}, live {:?} dBFS",
             want.iter()
-                .map(|s| format!("{:.2}", s.1))
+                .map(|s| format!("{:.2} ({:.0} ms, {})", s.1, s.2, s.3))
                 .collect::<Vec<_>>(),
             got.iter()
-                .map(|s| format!("{:.2}", s.1))
+                .map(|s| format!("{:.2} ({:.0} ms, {})", s.1, s.2, s.3))
                 .collect::<Vec<_>>()
         );
     }

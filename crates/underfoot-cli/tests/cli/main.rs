@@ -24,3 +24,5 @@ mod render_cmd;
 mod run_cmd;
 mod serial_link;
 mod silence;
+mod step_stats;
+mod steps_in_time;

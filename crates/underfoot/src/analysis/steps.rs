@@ -44,7 +44,8 @@
 //! # Between steps ([`StepSummary`])
 //!
 //! Medians over the steps of duration, event count, crest factor and event rate; the
-//! spread between steps, the mean over every pair of steps of the gain-aligned
+//! decay envelope (the median of the steps') and the micro-events' rate in each of its
+//! bins (their mean); the spread between steps, the mean over every pair of steps of the gain-aligned
 //! log-spectral distance between their band spectra (in dB, the RMS over bands of the
 //! difference with its mean removed: a louder step is not a different one); and the
 //! average band spectrum, which [`spectrum_distance`] compares between two sets of steps
@@ -180,6 +181,10 @@ pub struct StepSummary {
     pub spread_db: Option<f64>,
     /// Median decay envelope: energy per 10 ms from the onset, dB re the loudest bin.
     pub decay_db: Vec<f64>,
+    /// The micro-events' rate over the step: per bin of the decay envelope (10 ms from the
+    /// onset), the mean over the steps of the events whose peak falls in it, per second.
+    #[serde(default)]
+    pub event_rate_hz_by_bin: Vec<f64>,
     /// The band centres of `spectrum_db`, Hz.
     pub bands_hz: Vec<f64>,
     /// Average band spectrum (mean power over the steps), dB.
@@ -647,8 +652,19 @@ pub fn summarize(steps: &[Step], cfg: &StepConfig) -> StepSummary {
             )
         })
         .collect();
+    let bin = cfg.decay_bin.0.max(1e-4);
+    let mut event_rate_hz_by_bin = vec![0.0; bins];
+    for s in steps {
+        for e in &s.events {
+            let b = (e.time.0 / bin).floor();
+            if b >= 0.0 && (b as usize) < bins {
+                event_rate_hz_by_bin[b as usize] += 1.0 / (bin * steps.len() as f64);
+            }
+        }
+    }
     StepSummary {
         steps: steps.len(),
+        event_rate_hz_by_bin,
         duration_ms: 1e3 * median_of(steps.iter().map(|s| s.duration.0).collect()),
         events: median_of(steps.iter().map(|s| s.events.len() as f64).collect()),
         event_rate_hz: median_of(steps.iter().map(Step::event_rate).collect()),

@@ -1,6 +1,6 @@
 //! Firmware export: a library's materials as second-order sections in `f32`, Q15 and Q31,
-//! checked, and written as one C99 header with a portable reference of the per-sample
-//! loop ([`c::header`]).
+//! checked, with the excitation that drives them, written as one C99 header with a
+//! portable reference of the per-sample loops ([`c::header`]).
 //!
 //! # Rate
 //!
@@ -18,7 +18,9 @@
 //! each format is [checked](mod@check) against the float model, and the exporter refuses a
 //! library in which any material fails for a format it was asked for. The
 //! [library's export](mod@library) bundles the materials with the library's identity for
-//! [`c::header`].
+//! [`c::header`]. Each material also takes its excitation's [`Tables`](crate::excitation::Tables)
+//! at its rate (the heel impulse alone for a material without one), which the header's
+//! generator plays bit for bit as [`crate::excitation::Generator`] does (see [`c`]).
 //!
 //! # Figures
 //!
@@ -49,10 +51,10 @@
 //! | file | what |
 //! |---|---|
 //! | `mod.rs` | the settings ([`ExportConfig`]) and the errors ([`ExportError`]) |
-//! | [`quantise`](mod@quantise) | one material in `f32`, Q15 and Q31: decay limit, scaling, rounding, error feedback |
+//! | [`quantise`](mod@quantise) | one material in `f32`, Q15 and Q31: decay limit, scaling, rounding, error feedback; its excitation's tables |
 //! | [`check`](mod@check) | the check of a quantised cascade against the float model |
 //! | [`library`](mod@library) | the export of a library, and writing the header |
-//! | [`c`](mod@c) | the C99 header |
+//! | [`c`](mod@c) | the C99 header, the excitation's generator included |
 
 pub mod c;
 pub mod check;

@@ -1,5 +1,6 @@
 //! Quantising one material: the decay limit, the scaling, and the coefficients in `f32`,
-//! Q15 and Q31, each checked ([`mod@super::check`]).
+//! Q15 and Q31, each checked ([`mod@super::check`]); and its excitation's tables at its
+//! rate, which need no quantising (the generator's own `f64` and `f32` values).
 //!
 //! # Design of the fixed-point cascade
 //!

@@ -256,3 +256,84 @@ fn unknown_material_and_bad_model_are_errors() {
         Err(ExportError::Empty)
     ));
 }
+
+/// The definitions of `static const {what}*` tables in a header.
+fn defined(header: &str, what: &str) -> usize {
+    header
+        .lines()
+        .filter(|l| l.starts_with(&format!("static const {what}")))
+        .count()
+}
+
+#[test]
+fn each_material_carries_its_excitation_and_shared_tables_are_written_once() {
+    use crate::excitation::Tables;
+    let e = export_library(builtin(), "built-in", &[], &ExportConfig::default()).unwrap();
+    for m in &e.materials {
+        let model = builtin().get(&m.name).unwrap();
+        let tables = Tables::new(&model.excitation_or_heel(), model.sample_rate).unwrap();
+        assert_eq!(m.excitation, tables, "{}", m.name);
+    }
+    // One table of magnitudes per shape (of the materials with micro-impacts), one of
+    // time scales per duration spread (all at one rate).
+    let header = c::header(&e);
+    let distinct = |of: &dyn Fn(&MaterialModel) -> Option<f64>| {
+        builtin()
+            .materials
+            .iter()
+            .filter_map(|m| of(m).map(f64::to_bits))
+            .collect::<std::collections::BTreeSet<_>>()
+            .len()
+    };
+    let shapes = distinct(&|m| {
+        let x = m.excitation_or_heel();
+        (!x.energy.is_empty()).then_some(x.amplitude_shape)
+    });
+    let spreads = distinct(&|m| Some(m.excitation_or_heel().duration_spread));
+    assert_eq!(defined(&header, "float uf_exc_quantiles_"), shapes);
+    assert_eq!(defined(&header, "double uf_exc_steps_"), spreads);
+    assert!(header.contains("UF_NO_EXCITATION leaves it out"));
+    assert!(header.contains(" * All of them: "));
+    // The same material twice: its shared tables once.
+    let names = ["gravel", "gravel"].map(String::from);
+    let twice = c::header(
+        &export_library(builtin(), "built-in", &names, &ExportConfig::default()).unwrap(),
+    );
+    assert_eq!(defined(&twice, "float uf_exc_quantiles_"), 1);
+    assert_eq!(defined(&twice, "double uf_exc_steps_"), 1);
+    assert_eq!(defined(&twice, "double uf_m"), 2);
+}
+
+#[test]
+fn a_material_without_micro_impacts_has_no_per_bin_tables() {
+    // C99 has no empty arrays: a heel-only material's per-bin pointers are null, and so
+    // is its magnitudes' (never read).
+    let mut model = builtin().get("gravel").unwrap().clone();
+    model.excitation = None;
+    let m = prepare(&model, &ExportConfig::default()).unwrap();
+    assert_eq!(m.excitation.bins(), 0);
+    let header = c::header(&Export {
+        origin: "test".into(),
+        library_sha256: "0".repeat(64),
+        materials: vec![m],
+    });
+    assert!(
+        header.contains("static const uf_excitation uf_m0_gravel_exc = {0, 0, uf_exc_steps_0, 0, "),
+        "{header}"
+    );
+    assert_eq!(defined(&header, "float uf_exc_quantiles_"), 0);
+    assert_eq!(defined(&header, "double uf_exc_steps_"), 1);
+}
+
+#[test]
+fn an_invalid_excitation_is_refused_naming_the_material() {
+    let mut model = builtin().get("gravel").unwrap().clone();
+    if let Some(e) = model.excitation.as_mut() {
+        e.heel = 2.0;
+    }
+    let err = prepare(&model, &ExportConfig::default()).unwrap_err();
+    assert!(
+        matches!(&err, ExportError::BadModel { name, reason } if name == "gravel" && reason.contains("heel")),
+        "{err}"
+    );
+}

@@ -23,8 +23,12 @@
 //! that would still come within 3 dB of the ceiling is turned down alone, and `fit` says
 //! so. The limiter is then a safety net, not the normal path.
 //!
-//! `L_ref` is -12 dB: the built-in library's materials (the shared recordings) all keep
-//! 3 dB under the ceiling at it, the loudest (sand) by 0.3 dB.
+//! `L_ref` is -16 dB: at it, every material of the built-in library (the shared
+//! recordings) keeps its nominal step 3 dB under the ceiling, the loudest (snow's physical
+//! model) with 0.6 dB to spare, so all of them keep their recorded loudness relative to
+//! one another (at -12 dB snow, metal and sand would be turned down by 0.3-3.4 dB). The
+//! quietest recordings then play quietly (grass's steps peak near -40 dBFS): that is how
+//! loud they were recorded; `--gain-db` raises everything alike.
 
 use crate::excitation::{ExcitationModel, Generator, Tables, clock};
 use crate::signal::resample::Resampler;
@@ -32,7 +36,7 @@ use crate::signal::{SignalError, Sos};
 use crate::units::{Decibels, SampleRate};
 
 /// The level a recording's full scale plays at.
-pub const REFERENCE: Decibels = Decibels(-12.0);
+pub const REFERENCE: Decibels = Decibels(-16.0);
 
 /// How far under the default ceiling a nominal step peaks at least.
 pub const HEADROOM: Decibels = Decibels(3.0);

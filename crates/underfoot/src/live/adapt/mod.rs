@@ -67,11 +67,10 @@ pub const MIN_PROMINENCE: f64 = 8.0;
 pub const RECHECK: Seconds = Seconds(3.0);
 /// Samples each ring holds: 2^18, 5.5 s at 48 kHz.
 const RING: usize = 1 << 18;
-/// The drive RMS below which a window says nothing about the delay (-65 dBFS): far above
-/// silence, and under a walk at the materials' playback level (a walk on gravel, one step
-/// of a quarter second every 1.1 s at about -27 dBFS peak, is about -48 dBFS over a
-/// window).
-const MIN_WINDOW_RMS: f64 = 5.6e-4;
+/// The drive RMS below which a window says nothing about the delay (-70 dBFS): far above
+/// silence, and under a walk at the materials' playback level (a walk on gravel, steps
+/// peaking near -30 dBFS every 1.1 s, is -53 to -64 dBFS over a window).
+const MIN_WINDOW_RMS: f64 = 3.2e-4;
 
 /// Where the accelerometer is and how the adaptation runs.
 #[derive(Debug, Clone, PartialEq)]

@@ -115,11 +115,11 @@ fn simulate(seconds: f64, offset: i64, block: usize, material: &str) -> Run {
         drive_tap.push(&out, 1);
         let mut wide: Vec<f64> = out.iter().map(|&v| f64::from(v)).collect();
         plant.filter_with_state(&mut wide, &mut state);
-        // Sensor noise about 70 dB under the steps' peaks (gravel's nominal step peaks
-        // near -27 dBFS at its playback level).
+        // Sensor noise about 65 dB under the steps' peaks (gravel's steps peak near
+        // -30 dBFS at its playback level).
         let sensed: Vec<f32> = wide
             .iter()
-            .map(|&v| (v + 1.5e-5 * rng.normal()) as f32)
+            .map(|&v| (v + 1e-5 * rng.normal()) as f32)
             .collect();
         let skip = missed.min(sensed.len());
         missed -= skip;

@@ -92,8 +92,8 @@ impl Default for EstimateConfig {
             impacts_in_flight: 4,
             nominal_weight_kg: 70.0,
             nominal_cadence: 1.8,
-            steps: 8,
-            refine_rounds: 1,
+            steps: 16,
+            refine_rounds: 2,
             seed: 0x5EED,
         }
     }

@@ -32,7 +32,7 @@
 //! 8. **Physical scale, level, and the render's own error.** The gains are scaled so that
 //!    the surface's driving-point mass, `1 / \sum_k 2π f_k |g_k|`, is `mass_ratio` (10)
 //!    times the hammer's: the ground is much heavier than what strikes it, so the contact
-//!    stays close to the rigid one the gains were fitted with. Then `steps` (8) nominal
+//!    stays close to the rigid one the gains were fitted with. Then `steps` (16) nominal
 //!    steps are rendered ([`render`]), analysed exactly as the recordings were, and the
 //!    output gain is set so that the mean level in dB over the band equals the
 //!    measurement's. What the render still misses, `M(f) / R(f)`, multiplies the goal of
