@@ -31,7 +31,7 @@
 //!
 //! A second table gives the steps in time ([`underfoot::analysis::steps`]): per material,
 //! the recordings' median duration (`D90`), micro-event count, crest factor and spread
-//! between steps, beside those of `--steps` (24) steps of a generated walk rendered at
+//! between steps, beside those of `--steps` (48) steps of a generated walk rendered at
 //! 48 kHz by the IIR filter and by the physical model, each played by the material's
 //! fitted excitation at its playback level; and how far each render's average step
 //! spectrum (gain-aligned) and level are from the recordings'. The JSON holds them under
@@ -68,7 +68,7 @@ pub struct CompareArgs {
     #[arg(long, value_name = "svg|png", default_value = "svg", value_parser = ["svg", "png"])]
     plot_format: String,
     /// Steps of a generated walk rendered per material and model for the table in time.
-    #[arg(long, default_value_t = 24, value_name = "N", value_parser = clap::value_parser!(u32).range(2..=200))]
+    #[arg(long, default_value_t = 48, value_name = "N", value_parser = clap::value_parser!(u32).range(2..=200))]
     steps: u32,
     /// Materials and their recordings, e.g. `gravel=recordings/gravel`.
     #[arg(required = true, value_name = "NAME=FOLDER", value_parser = parse_pair)]

@@ -498,7 +498,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
 }
 
 /// Steps of a generated walk rendered per model for `--report`'s tables in time.
-const REPORT_STEPS: usize = 24;
+const REPORT_STEPS: usize = 48;
 
 /// What a step of the material is made of, as fitted: its heel, its train, its level, and
 /// the recordings' figures beside the calibration render's.

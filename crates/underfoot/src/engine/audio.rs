@@ -20,10 +20,6 @@ pub struct Engine {
     pub(super) channels: Vec<Channel>,
     // Boxed so that a replacement is a pointer swap on the audio thread, and the old one
     // goes back to the controller to be freed there.
-    #[expect(
-        clippy::vec_box,
-        reason = "materials are swapped by pointer and freed elsewhere"
-    )]
     pub(super) bank: Vec<Box<PreparedMaterial>>,
     /// One per channel: compensation, watchdog, gain and fade, limiter.
     pub(super) stages: Vec<OutputStage>,

@@ -343,22 +343,22 @@ pub fn estimate(
     // the train some of its energy, which shows as a crest factor too low. Twice and four
     // times the measured share are tried (the train keeps at least a tenth), each kept
     // only if the render comes closer.
-    if heel > 0.0 && heel < 1.0 {
-        if let Some((score_now, d, shape, summary)) = best.clone()
-            && target.crest_db - summary.crest_db > 1.0
-        {
-            let mut chosen = (score_now, heel);
-            for m in [2.0, 4.0] {
-                heel_share.set((heel * m).min(0.9));
-                let candidate = renderer.summary(&build(d, 1.0, shape)?)?;
-                let s = score(&candidate);
-                if s < chosen.0 {
-                    chosen = (s, heel_share.get());
-                    best = Some((s, d, shape, candidate));
-                }
+    if heel > 0.0
+        && heel < 1.0
+        && let Some((score_now, d, shape, summary)) = best.clone()
+        && target.crest_db - summary.crest_db > 1.0
+    {
+        let mut chosen = (score_now, heel);
+        for m in [2.0, 4.0] {
+            heel_share.set((heel * m).min(0.9));
+            let candidate = renderer.summary(&build(d, 1.0, shape)?)?;
+            let s = score(&candidate);
+            if s < chosen.0 {
+                chosen = (s, heel_share.get());
+                best = Some((s, d, shape, candidate));
             }
-            heel_share.set(chosen.1);
         }
+        heel_share.set(chosen.1);
     }
     let Some((_, density, shape, _)) = best.clone() else {
         return Err(bad("no calibration render finished".into()));
@@ -539,7 +539,7 @@ fn strike_train(
     }
     let mut p = richardson_lucy(&envelope, h2, cfg.iterations);
     let sum: f64 = p.iter().sum();
-    if !(sum > 0.0) {
+    if sum.is_nan() || sum <= 0.0 {
         return None;
     }
     for v in &mut p {
@@ -574,7 +574,7 @@ fn strike_train(
     let density = p[lo.min(o)..].to_vec();
     let train: f64 = density.iter().sum();
     let kept = heel + train;
-    if !(kept > 0.0) {
+    if kept.is_nan() || kept <= 0.0 {
         return None;
     }
     let density: Vec<f64> = density.iter().map(|v| v / kept).collect();

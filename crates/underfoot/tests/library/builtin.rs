@@ -137,5 +137,25 @@ fn builtin_library_is_current() {
             "{}: physical model differs; run scripts/refit-builtin",
             preset.name
         );
+        // The excitation and the level are fitted by the same run, deterministically.
+        let (got, want) = (
+            refit
+                .excitation
+                .as_ref()
+                .expect("the refit fits an excitation"),
+            preset
+                .excitation
+                .as_ref()
+                .unwrap_or_else(|| panic!("{}: run scripts/refit-builtin", preset.name)),
+        );
+        assert!(
+            got.energy.len() == want.energy.len()
+                && (got.heel - want.heel).abs() < 1e-6
+                && got.rate_hz == want.rate_hz
+                && got.amplitude_shape == want.amplitude_shape
+                && (refit.level_db - preset.level_db).abs() < 0.05,
+            "{}: excitation or level differs; run scripts/refit-builtin",
+            preset.name
+        );
     }
 }

@@ -15,6 +15,7 @@ mod builtin;
 mod compensation;
 mod conditioning;
 mod engine;
+mod excitation;
 mod firmware;
 mod fit_oracle;
 mod hardware_guide;
