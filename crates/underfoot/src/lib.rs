@@ -41,7 +41,7 @@
 //!   vibration synthesis using a recursive filter for lower limb prosthetics*. Strike
 //!   conditioning ([`signal::savgol`], [`signal::butterworth`], [`recording`]), the
 //!   measured response ([`analysis`]), the IIR fit with its order chosen by NRMSE
-//!   ([`fit`]), force-driven playback with 1% numerator noise at every step
+//!   ([`fit`]), force-driven playback with numerator noise at every step
 //!   ([`synthesis::voice`]), and the physical impact model it compares with
 //!   ([`physical`]).
 //! - **\[tile\] the tile paper**: Y. Visell et al., *A Vibrotactile Device for Display of

@@ -5,7 +5,7 @@
 //!
 //! | [`DriveKind`] | `x[n]` | source |
 //! |---|---|---|
-//! | `Impulse` (default) | `i_s δ[n - n_s]` at each heel strike `s` of intensity `i_s` | paper 1, Fig. 4 and section V-A |
+//! | `Impulse` (default) | `i_s e_s[n - n_s]` at each heel strike `s` of intensity `i_s`: the step's excitation, a heel impulse and its train of micro-impacts ([`crate::excitation`]; one impulse, `δ`, with `--excitation heel`) | paper 1, Fig. 4 and section V-A; its reference \[19\] |
 //! | `Force` | `F[n] / W` | paper 1, section IV-C (the real-time Simulink model) |
 //! | `ForceRate` | `v_F[n] / W`, `v_F = max(±dF/dt, 0)` | paper 2, equation (1) |
 //!
@@ -33,7 +33,8 @@ use crate::units::{Newtons, SampleRate};
 /// What drives the material filter.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum DriveKind {
-    /// One impulse per heel strike, scaled by the strike's intensity.
+    /// Each heel strike's excitation (its heel impulse and train of micro-impacts, or one
+    /// impulse), scaled by the strike's intensity.
     #[default]
     Impulse,
     /// The total force.

@@ -10,34 +10,40 @@
 //! |---|---|
 //! | [`resonator`] | the surface, a [`ResonatorBank`] of [`SurfaceMode`]s discretised by impulse invariance, also available as second-order sections for interchange |
 //! | [`impact`] | the Hunt-Crossley contact between a hammer and a rigid or resonating surface, integrated by an energy-consistent implicit step |
-//! | [`aggregate`] | gravel, snow or sand as a Poisson stream of micro-impacts of random energy and fragment size, at a rate `N(t)` the caller drives, on a pool of impacts in flight |
+//! | [`aggregate`] | gravel, snow or sand as a stream of micro-impacts of random energy and fragment size, Poisson at a rate `N(t)` the caller drives or struck by an excitation's impulses, on a pool of impacts in flight |
 //! | [`estimate`](mod@estimate) | all of the above estimated from recordings, with no hand tuning |
 //! | [`model`] | the estimated [`PhysicalModel`] as stored in a library file |
-//! | [`ground`] | an estimated model running, force in and vibration out ([`Ground`]) |
+//! | [`ground`] | an estimated model running, a step's excitation in and vibration out ([`Ground`]) |
 //!
 //! All are prepared once (where they may allocate and validate) and then run without
 //! allocating or panicking.
 //!
 //! # Example
 //!
-//! The built-in gravel's physical model, estimated from its recordings, running: the
-//! rising force of a heel coming down (its loading rate `v_F`, in N/s) sets the rate of
-//! micro-impacts, each ringing the surface's modes.
+//! The built-in gravel's physical model, estimated from its recordings, struck by its
+//! excitation ([`crate::excitation`]): a step announced without force, whose clock runs at
+//! the nominal pace, its micro-impulses each a grain striking the surface's modes.
 //!
 //! ```
+//! use underfoot::excitation::{Generator, Tables};
 //! use underfoot::material::builtin::builtin;
 //! use underfoot::physical::{Ground, GroundKind};
 //! use underfoot::units::SampleRate;
 //!
 //! let library = builtin();
-//! let gravel = library.get("gravel")?.physical.as_ref().expect("gravel has a physical model");
-//! assert_eq!(gravel.kind, GroundKind::Aggregate);
+//! let gravel = library.get("gravel")?;
+//! let model = gravel.physical.as_ref().expect("gravel has a physical model");
+//! assert_eq!(model.kind, GroundKind::Aggregate);
 //!
-//! let mut ground = Ground::new(gravel, SampleRate(48_000), 1, 256)?;
-//! // 0.1 s of a heel loading at 10 kN/s (700 N in 70 ms), then standing still.
-//! let loading: Vec<f32> = (0..4800).map(|n| if n < 3360 { 10_000.0 } else { 0.0 }).collect();
-//! let mut out = vec![0.0f32; loading.len()];
-//! assert_eq!(ground.process(&loading, &mut out), 0); // 0: nothing went non-finite
+//! let rate = SampleRate(48_000);
+//! let tables = Tables::new(&gravel.excitation_or_heel(), rate)?;
+//! let mut ground = Ground::new(model, rate, 1, tables.mean_impulse_energy())?;
+//! let mut generator = Generator::new(7);
+//! generator.step(&tables, 1.0);
+//! let mut excitation = vec![0.0f32; 24_000];
+//! generator.process(&tables, &vec![1.0; 24_000], &mut excitation);
+//! let mut out = vec![0.0f32; excitation.len()];
+//! assert_eq!(ground.process(&excitation, &mut out), 0); // 0: nothing went non-finite
 //! assert!(ground.events() > 10);
 //! assert!(out.iter().any(|y| *y != 0.0));
 //! # Ok::<(), Box<dyn std::error::Error>>(())

@@ -18,7 +18,9 @@
 //! # The perturbation (the IIR paper's equation 4)
 //!
 //! At every new step each numerator coefficient is multiplied by `1 + σ n`,
-//! `n ~ N(0, 1)`, `σ = 0.01` by default, from a seeded generator: the poles, and so
+//! `n ~ N(0, 1)`, from a seeded generator, `σ` the material's own (sized from its
+//! recordings' spread between steps, [`PreparedMaterial::perturbation`]) or the IIR
+//! paper's 0.01 when the engine is set to it: the poles, and so
 //! stability, never change, while the zeros move and every step sounds a little
 //! different. The IIR paper perturbs the expanded numerator of the analysis-rate filter. At
 //! the audio rate the numerator coefficients of a low mode nearly cancel
