@@ -29,9 +29,15 @@ fn compare_prints_table_one_for_the_papers_five_materials() {
     args.extend(pairs.iter().map(String::as_str));
     let o = run(&args);
     assert_ok(&o);
-    let table = stdout(&o);
-    eprintln!("{table}");
+    let out = stdout(&o);
+    eprintln!("{out}");
+    let (table, in_time) = out
+        .split_once("\n\n")
+        .expect("Table I, then the steps in time");
     assert_eq!(table.lines().count(), 6, "a header and five rows:\n{table}");
+    // The steps in time: an introduction, a blank line, a header, a rule and a row per
+    // material.
+    assert_eq!(in_time.lines().count(), 9, "{in_time}");
     let parsed: serde_json::Value =
         serde_json::from_str(&fs::read_to_string(&json).expect("json written")).expect("json");
     let rows = parsed["materials"].as_array().expect("materials");
@@ -50,6 +56,23 @@ fn compare_prints_table_one_for_the_papers_five_materials() {
         // The fitted filter is the closer of the two, as in the IIR paper; both are close.
         assert!(row["iir"]["lsd_db"].as_f64().unwrap() <= 1.0, "{name}");
         assert!(row["physical"]["lsd_db"].as_f64().unwrap() <= 3.0, "{name}");
+        // In time: the recordings' steps and each model's, with the figures printed.
+        let time = &row["time"];
+        let recorded = time["recorded"]["duration_ms"]
+            .as_f64()
+            .expect("recorded D90");
+        let line = in_time
+            .lines()
+            .find(|l| l.starts_with(name))
+            .expect("a row in time");
+        assert!(line.contains(&format!("{recorded:.0} / ")), "{line}");
+        for model in ["iir", "physical"] {
+            let steps = &time[model]["steps"];
+            assert_eq!(steps["steps"].as_u64(), Some(48), "{name} {model}");
+            let d90 = steps["duration_ms"].as_f64().expect("rendered D90");
+            assert!(d90 > 0.0 && d90.is_finite(), "{name} {model}");
+            assert!(time[model]["spectrum_db"].as_f64().expect("spectrum") < 4.0);
+        }
         let svg = fs::read_to_string(plots.join(format!("{name}.svg"))).expect("plot");
         assert!(
             svg.contains("physical") && svg.contains("IIR"),

@@ -109,9 +109,9 @@ mod tests {
     fn quiet_materials_keep_the_reference_and_loud_ones_are_turned_down() {
         assert_eq!(level_for(0.01), REFERENCE);
         assert_eq!(level_for(1.0), REFERENCE);
-        // A step at twice full scale (+6 dB) played 15 dB down: 9 dB under full scale, the
-        // ceiling's -6 less 3.
-        assert!((level_for(2.0).0 + 9.0 + Decibels::from_amplitude(2.0).0).abs() < 1e-12);
+        // A step at four times full scale (+12 dB) played 21 dB down: 9 dB under full
+        // scale, the ceiling's -6 less 3.
+        assert!((level_for(4.0).0 + 9.0 + Decibels::from_amplitude(4.0).0).abs() < 1e-12);
     }
 
     #[test]
