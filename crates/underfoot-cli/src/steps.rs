@@ -7,6 +7,7 @@
 //! recordings' steps were measured when the material was fitted (the library's `time`).
 
 use anyhow::Context;
+use underfoot::analysis::steps::StepSummary;
 use underfoot::engine::offline::{render, walk_across};
 use underfoot::engine::{EngineConfig, MaterialBank};
 use underfoot::force::gait::{GaitConfig, nominal_step};
@@ -79,15 +80,20 @@ pub struct TimeRow<'a> {
     pub physical: Option<&'a StepComparison>,
 }
 
-/// `recorded / iir / physical`, each formatted by `f`, `-` where absent.
-fn trio(
-    recorded: Option<f64>,
-    iir: Option<f64>,
-    physical: Option<f64>,
-    f: impl Fn(f64) -> String,
-) -> String {
-    [recorded, iir, physical]
-        .iter()
+/// One material's row of a table of one render against its recordings (the demo's walk).
+pub struct RenderRow<'a> {
+    /// The material.
+    pub name: &'a str,
+    /// Its recorded steps' figures (from its library entry).
+    pub model: &'a MaterialModel,
+    /// Its render, measured.
+    pub rendered: Option<&'a StepComparison>,
+}
+
+/// `recorded / render / render...`, each formatted by `f`, `-` where absent.
+fn figures(recorded: Option<f64>, renders: &[Option<f64>], f: impl Fn(f64) -> String) -> String {
+    std::iter::once(recorded)
+        .chain(renders.iter().copied())
         .map(|v| v.filter(|v| v.is_finite()).map_or("-".to_string(), &f))
         .collect::<Vec<_>>()
         .join(" / ")
@@ -97,66 +103,85 @@ fn trio(
 /// micro-events, crest factor and spread between steps, and how far each render's average
 /// spectrum and level are from the recordings'.
 pub fn time_table(rows: &[TimeRow<'_>]) -> String {
+    let rows: Vec<(&str, &MaterialModel, Vec<Option<&StepComparison>>)> = rows
+        .iter()
+        .map(|r| (r.name, r.model, vec![r.iir, r.physical]))
+        .collect();
+    renders_table(&rows, &["IIR", "phys"])
+}
+
+/// [`time_table`] with one render, named `label` in the headers, in place of the IIR and
+/// physical ones.
+pub fn render_time_table(rows: &[RenderRow<'_>], label: &str) -> String {
+    let rows: Vec<(&str, &MaterialModel, Vec<Option<&StepComparison>>)> = rows
+        .iter()
+        .map(|r| (r.name, r.model, vec![r.rendered]))
+        .collect();
+    renders_table(&rows, &[label])
+}
+
+/// The time table of any number of renders per material, named by `labels` in the
+/// headers.
+fn renders_table(
+    rows: &[(&str, &MaterialModel, Vec<Option<&StepComparison>>)],
+    labels: &[&str],
+) -> String {
     use Align::{Left, Right};
     let cells: Vec<Vec<String>> = rows
         .iter()
-        .map(|r| {
-            let rec = r.model.time.as_ref();
-            let (i, p) = (r.iir.map(|c| &c.rendered), r.physical.map(|c| &c.rendered));
+        .map(|(name, model, renders)| {
+            let rec = model.time.as_ref();
+            let column = |f: &dyn Fn(&StepSummary) -> Option<f64>| -> Vec<Option<f64>> {
+                renders
+                    .iter()
+                    .map(|c| c.and_then(|c| f(&c.rendered)))
+                    .collect()
+            };
+            let compared = |f: &dyn Fn(&StepComparison) -> f64, fmt: &dyn Fn(f64) -> String| {
+                renders
+                    .iter()
+                    .map(|c| c.map(f).filter(|v| v.is_finite()).map_or("-".into(), fmt))
+                    .collect::<Vec<_>>()
+                    .join(" / ")
+            };
             vec![
-                r.name.to_string(),
-                trio(
+                (*name).to_string(),
+                figures(
                     rec.map(|s| s.duration_ms),
-                    i.map(|s| s.duration_ms),
-                    p.map(|s| s.duration_ms),
+                    &column(&|s| Some(s.duration_ms)),
                     |v| format!("{v:.0}"),
                 ),
-                trio(
-                    rec.map(|s| s.events),
-                    i.map(|s| s.events),
-                    p.map(|s| s.events),
-                    |v| format!("{v:.0}"),
-                ),
-                trio(
+                figures(rec.map(|s| s.events), &column(&|s| Some(s.events)), |v| {
+                    format!("{v:.0}")
+                }),
+                figures(
                     rec.map(|s| s.crest_db),
-                    i.map(|s| s.crest_db),
-                    p.map(|s| s.crest_db),
+                    &column(&|s| Some(s.crest_db)),
                     |v| format!("{v:.1}"),
                 ),
-                trio(
+                figures(
                     rec.and_then(|s| s.spread_db),
-                    i.and_then(|s| s.spread_db),
-                    p.and_then(|s| s.spread_db),
+                    &column(&|s| s.spread_db),
                     |v| format!("{v:.2}"),
                 ),
-                [r.iir, r.physical]
-                    .iter()
-                    .map(|c| {
-                        c.filter(|c| c.spectrum_db.is_finite())
-                            .map_or("-".into(), |c| format!("{:.2}", c.spectrum_db))
-                    })
-                    .collect::<Vec<_>>()
-                    .join(" / "),
-                [r.iir, r.physical]
-                    .iter()
-                    .map(|c| {
-                        c.filter(|c| c.level_db.is_finite())
-                            .map_or("-".into(), |c| format!("{:+.1}", c.level_db))
-                    })
-                    .collect::<Vec<_>>()
-                    .join(" / "),
+                compared(&|c| c.spectrum_db, &|v| format!("{v:.2}")),
+                compared(&|c| c.level_db, &|v| format!("{v:+.1}")),
             ]
         })
         .collect();
+    let names = labels.join("/");
+    let d90 = format!("D90 ms rec/{names}");
+    let spectrum = format!("spectrum dB {names}");
+    let level = format!("level dB {names}");
     table(
         &[
             ("material", Left),
-            ("D90 ms rec/IIR/phys", Right),
+            (&d90, Right),
             ("micro-events", Right),
             ("crest dB", Right),
             ("spread dB", Right),
-            ("spectrum dB IIR/phys", Right),
-            ("level dB IIR/phys", Right),
+            (&spectrum, Right),
+            (&level, Right),
         ],
         &cells,
     )

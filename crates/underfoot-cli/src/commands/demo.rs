@@ -6,9 +6,13 @@
 //! - `walk-force.csv`: the force track that drove it;
 //! - `walk.svg`: its spectrogram, materials marked;
 //! - `spectra.svg`: each material's measured response against its fitted model (Fig. 4);
+//! - `steps.svg`: each material's steps in time, its recorded steps' decay envelope and
+//!   micro-events against those of its stretch of the walk;
 //! - `walk.json`: where each material's stretch is, and how closely it reproduces the
 //!   material (log-spectral distance between the stretch, analysed like a recording, and
-//!   the response measured from the material's recordings).
+//!   the response measured from the material's recordings; in time, the recorded steps'
+//!   figures beside the stretch's, each step measured from where its sound starts after
+//!   its strike, as the recordings' steps were).
 //!
 //! Every material plays at its library level (`underfoot::material::level`), which keeps a
 //! nominal step 3 dB under the default ceiling: the walk is not limited, so its stretches
@@ -19,17 +23,19 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::Args;
 use serde::Serialize;
+use underfoot::analysis::steps::StepSummary;
 use underfoot::atomic_file::OutputFile;
 use underfoot::engine::offline::{render, walk_across};
 use underfoot::force::gait::GaitConfig;
 use underfoot::io::wav::{WavFormat, WavSink};
-use underfoot::material::evaluate::segment_lsd;
-use underfoot::units::Decibels;
+use underfoot::material::evaluate::{StepComparison, compare_steps, segment_lsd};
+use underfoot::units::{Decibels, Seconds};
 
 use crate::commands::synth::SynthArgs;
 use crate::output::emit;
-use crate::plot::{self, Omitted, Panel, Segment};
+use crate::plot::{self, Omitted, Panel, Segment, StepPanel};
 use crate::report::{Align, fit_table, table};
+use crate::steps::{RenderRow, render_time_table};
 
 /// Arguments of `underfoot demo`.
 #[derive(Debug, Args)]
@@ -66,6 +72,56 @@ struct SegmentReport {
     end_s: f64,
     strikes: usize,
     lsd_db: f64,
+    /// `None` for a material without recorded steps (a library file before format 3).
+    time: Option<TimeReport>,
+}
+
+/// A stretch's steps in time beside the material's recorded steps.
+#[derive(Serialize)]
+struct TimeReport {
+    recorded: StepFigures,
+    rendered: StepFigures,
+    /// Gain-aligned log-spectral distance between the two average step spectra.
+    spectrum_db: Option<f64>,
+    /// The rendered steps' level over the recorded ones, output gain and playback level
+    /// taken out.
+    level_db: Option<f64>,
+}
+
+/// A step summary's figures (`underfoot::analysis::steps::StepSummary`).
+#[derive(Serialize)]
+struct StepFigures {
+    steps: usize,
+    duration_ms: f64,
+    events: f64,
+    event_rate_hz: f64,
+    crest_db: f64,
+    spread_db: Option<f64>,
+}
+
+impl StepFigures {
+    fn of(s: &StepSummary) -> Self {
+        Self {
+            steps: s.steps,
+            duration_ms: s.duration_ms,
+            events: s.events,
+            event_rate_hz: s.event_rate_hz,
+            crest_db: s.crest_db,
+            spread_db: s.spread_db,
+        }
+    }
+}
+
+impl TimeReport {
+    fn of(recorded: &StepSummary, c: &StepComparison) -> Self {
+        let finite = |v: f64| Some(v).filter(|v| v.is_finite());
+        Self {
+            recorded: StepFigures::of(recorded),
+            rendered: StepFigures::of(&c.rendered),
+            spectrum_db: finite(c.spectrum_db),
+            level_db: finite(c.level_db),
+        }
+    }
 }
 
 /// Runs `underfoot demo`.
@@ -83,7 +139,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     ))?;
     std::fs::create_dir_all(&args.out_dir)
         .with_context(|| format!("creating output directory {}", args.out_dir.display()))?;
-    // The five files against the output policy (underfoot::atomic_file) before any is
+    // The six files against the output policy (underfoot::atomic_file) before any is
     // written: never the library or compensation files the demo reads, never a device.
     let inputs = args.synth.input_files();
     let inputs: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
@@ -93,14 +149,21 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         "walk.json",
         "walk.svg",
         "spectra.svg",
+        "steps.svg",
     ];
     let paths: Vec<PathBuf> = names.iter().map(|n| args.out_dir.join(n)).collect();
     let outs = OutputFile::check_all(
         &paths.iter().map(PathBuf::as_path).collect::<Vec<_>>(),
         &inputs,
     )?;
-    let [wav_out, force_out, json_out, spectrogram_out, spectra_out] =
-        <[OutputFile; 5]>::try_from(outs).map_err(|_| anyhow::anyhow!("five outputs"))?;
+    let [
+        wav_out,
+        force_out,
+        json_out,
+        spectrogram_out,
+        spectra_out,
+        steps_out,
+    ] = <[OutputFile; 6]>::try_from(outs).map_err(|_| anyhow::anyhow!("six outputs"))?;
 
     let gait = if args.gait.is_empty() {
         GaitConfig::default()
@@ -132,6 +195,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     walk.track.save_to(&force_out)?;
 
     let mut segments = Vec::new();
+    let mut in_time = Vec::new();
     for seg in &walk.segments {
         let (a, b) = (
             rate.samples_in(seg.start),
@@ -140,13 +204,34 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         let model = setup.library.get(&seg.material)?;
         let lsd = segment_lsd(&out.samples[a..b], rate, model, setup.config.gain)
             .with_context(|| format!("analysing the {} stretch of the walk", seg.material))?;
+        // At the strikes the walk was generated with, as the engine knows them: found in
+        // the signal, a quiet step could be missed or a loud ring taken for one.
+        let onsets: Vec<Seconds> = seg
+            .strikes
+            .iter()
+            .map(|t| Seconds(t.0 - a as f64 / rate.hz()))
+            .collect();
+        let steps = compare_steps(
+            &out.samples[a..b],
+            rate,
+            Some(&onsets),
+            model,
+            setup.config.gain,
+        )
+        .with_context(|| format!("measuring the {} stretch's steps", seg.material))?;
         segments.push(SegmentReport {
             material: seg.material.clone(),
             start_s: seg.start.0,
             end_s: seg.end.0,
             strikes: seg.strikes.len(),
             lsd_db: lsd,
+            time: model
+                .time
+                .as_ref()
+                .zip(steps.as_ref())
+                .map(|(recorded, c)| TimeReport::of(recorded, c)),
         });
+        in_time.push((model, steps));
     }
     let rows: Vec<Vec<String>> = segments
         .iter()
@@ -179,6 +264,19 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
             ],
             &rows
         )
+    ))?;
+    let time_rows: Vec<RenderRow<'_>> = in_time
+        .iter()
+        .map(|(model, steps)| RenderRow {
+            name: &model.name,
+            model,
+            rendered: steps.as_ref(),
+        })
+        .collect();
+    emit(&format!(
+        "\nThe steps in time: recorded / rendered in the walk (each stretch's steps, measured \
+         from where each starts after its strike, as the recordings are):\n\n{}",
+        render_time_table(&time_rows, "walk")
     ))?;
 
     let report = WalkReport {
@@ -230,12 +328,36 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     // SVG never omits text (see the plot module), so there is nothing to warn about.
     let omitted = spectra_out.write_with(|p| plot::draw_spectra(p, &panels))?;
     debug_assert_eq!(omitted, Omitted::Nothing);
+
+    let steps_path = steps_out.path().to_path_buf();
+    let step_panels: Vec<StepPanel<'_>> = in_time
+        .iter()
+        .map(|(model, steps)| {
+            let (recorded, rendered) = (model.time.as_ref(), steps.as_ref().map(|c| &c.rendered));
+            let title = match (recorded, rendered) {
+                (Some(r), Some(w)) => format!(
+                    "{}: D90 {:.0} ms recorded, {:.0} ms rendered",
+                    model.name, r.duration_ms, w.duration_ms
+                ),
+                // compare_steps measures nothing without recorded steps to compare with.
+                _ => format!("{}: no recorded steps in the library", model.name),
+            };
+            StepPanel {
+                title,
+                recorded,
+                rendered,
+            }
+        })
+        .collect();
+    let omitted = steps_out.write_with(|p| plot::draw_steps(p, &step_panels))?;
+    debug_assert_eq!(omitted, Omitted::Nothing);
     emit(&format!(
-        "\nwalk: {}\nforce: {}\nspectrogram: {}\nspectra: {}\nreport: {}\n",
+        "\nwalk: {}\nforce: {}\nspectrogram: {}\nspectra: {}\nsteps: {}\nreport: {}\n",
         wav.display(),
         args.out_dir.join("walk-force.csv").display(),
         spectrogram.display(),
         path.display(),
+        steps_path.display(),
         args.out_dir.join("walk.json").display(),
     ))
 }

@@ -1,9 +1,11 @@
 //! Axes: the frame of a magnitude plot (dB against log-frequency) that spectra and
-//! responses share, and the labels of log-frequency and time axes.
+//! responses share, the labels of log-frequency and time axes, and a panel's title row
+//! with its legend.
 
 use plotters::coord::Shift;
 use plotters::coord::combinators::WithKeyPoints;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::TITLE_HEIGHT;
 use super::font::FAMILY;
@@ -22,6 +24,135 @@ pub(super) fn one_two_five(f: f64) -> String {
 /// Decimals enough to tell apart the labels of a time axis `span_s` long.
 pub(super) fn time_decimals(span_s: f64) -> usize {
     (1.0 - span_s.log10().floor()).clamp(0.0, 4.0) as usize
+}
+
+/// A generous width for `text` at `size` pixels: 0.6 em a character. Text is not
+/// measured, so that an SVG (which needs no font) and a PNG of the same figure are laid
+/// out alike.
+pub(super) fn text_width(text: &str, size: f64) -> i32 {
+    (0.6 * size * text.chars().count() as f64).ceil() as i32
+}
+
+/// The size of a panel title's text, pixels.
+pub(super) const TITLE_FONT_PX: f64 = 17.0;
+/// The size of a legend's labels, pixels.
+const LEGEND_FONT_PX: f64 = 13.0;
+/// The height of each legend row below the title row, pixels.
+const LEGEND_ROW: u32 = 18;
+/// A legend entry's sample line.
+const SAMPLE_LINE: i32 = 22;
+/// A legend entry's sample patch (a bar), beside its line.
+const SAMPLE_PATCH: i32 = 10;
+
+/// One entry of a legend: a sample line, optionally a patch beside it (what the bars of
+/// the same series look like), and a label.
+pub(super) struct LegendEntry<'a> {
+    pub label: &'a str,
+    pub line: ShapeStyle,
+    pub patch: Option<ShapeStyle>,
+}
+
+impl LegendEntry<'_> {
+    fn width(&self) -> i32 {
+        let patch = if self.patch.is_some() {
+            SAMPLE_PATCH + 6
+        } else {
+            0
+        };
+        SAMPLE_LINE + patch + 5 + text_width(self.label, LEGEND_FONT_PX) + 18
+    }
+}
+
+/// Where a legend goes in a panel `width` pixels wide: right of the title, which ends
+/// at `title_end`, when it fits; else on rows of its own below the title row, never past
+/// the right edge. Never over the title either way.
+pub(super) struct LegendPlacement {
+    /// Each entry's left end and vertical centre.
+    origins: Vec<(i32, i32)>,
+    /// How far the legend pushes the plot down below the title row, pixels.
+    pub drop: u32,
+}
+
+/// Places `entries` in a panel `width` pixels wide whose title ends at `title_end` (see
+/// [`LegendPlacement`]). A figure of several panels places its legends with its widest
+/// title, so that every panel's plot starts at the same height.
+pub(super) fn place_legend(
+    width: u32,
+    title_end: i32,
+    entries: &[LegendEntry<'_>],
+) -> LegendPlacement {
+    let row_y = (super::TITLE_HEIGHT / 2) as i32;
+    let widths: Vec<i32> = entries.iter().map(LegendEntry::width).collect();
+    let right = width as i32 - 8;
+    let beside = right - widths.iter().sum::<i32>();
+    if beside >= title_end + 24 {
+        let origins = widths
+            .iter()
+            .scan(beside, |x, w| {
+                let at = *x;
+                *x += w;
+                Some((at, row_y))
+            })
+            .collect();
+        return LegendPlacement { origins, drop: 0 };
+    }
+    let mut drop = 20;
+    let (mut x, mut y) = (12, row_y + drop as i32);
+    let mut origins = Vec::with_capacity(entries.len());
+    for w in &widths {
+        if x > 12 && x + w > right {
+            drop += LEGEND_ROW;
+            y += LEGEND_ROW as i32;
+            x = 12;
+        }
+        origins.push((x, y));
+        x += w;
+    }
+    LegendPlacement { origins, drop }
+}
+
+/// Draws a panel's title at the left of its top row and its legend where `placement`
+/// put it.
+pub(super) fn draw_title_and_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    title: &str,
+    entries: &[LegendEntry<'_>],
+    placement: &LegendPlacement,
+    ink: RGBAColor,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let text = |size: f64| {
+        (FAMILY, size)
+            .into_font()
+            .color(&ink)
+            .pos(Pos::new(HPos::Left, VPos::Center))
+    };
+    area.draw(&Text::new(
+        title.to_string(),
+        (12, (super::TITLE_HEIGHT / 2) as i32),
+        text(TITLE_FONT_PX),
+    ))?;
+    for (entry, &(x, y)) in entries.iter().zip(&placement.origins) {
+        area.draw(&PathElement::new(
+            vec![(x, y), (x + SAMPLE_LINE, y)],
+            entry.line,
+        ))?;
+        let mut label_x = x + SAMPLE_LINE + 5;
+        if let Some(patch) = entry.patch {
+            let px = x + SAMPLE_LINE + 6;
+            let half = SAMPLE_PATCH / 2;
+            area.draw(&Rectangle::new(
+                [(px, y - half), (px + SAMPLE_PATCH, y + half)],
+                patch,
+            ))?;
+            label_x = px + SAMPLE_PATCH + 5;
+        }
+        area.draw(&Text::new(
+            entry.label.to_string(),
+            (label_x, y),
+            text(LEGEND_FONT_PX),
+        ))?;
+    }
+    Ok(())
 }
 
 pub(super) type MagnitudeChart<'a, DB> = ChartContext<

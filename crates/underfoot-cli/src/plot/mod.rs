@@ -1,8 +1,10 @@
 //! Plots: spectra (measured against model magnitude, in dB on a log-frequency axis, one
 //! panel per material, drawn from each model's fit record), spectrograms of a signal with
-//! labelled segments of its timeline (the materials of a walk), and magnitude responses
-//! (a device's passes, a limb model). The computation behind each is the library's (the
-//! fit record, `underfoot::signal::spectrum::Spectrogram`); this module only draws.
+//! labelled segments of its timeline (the materials of a walk), magnitude responses
+//! (a device's passes, a limb model), and steps in time (recorded against rendered decay
+//! envelopes and micro-events, one panel per material). The computation behind each is
+//! the library's (the fit record, `underfoot::signal::spectrum::Spectrogram`, the step
+//! summaries of `underfoot::analysis::steps`); this module only draws.
 //!
 //! The format follows the file extension: `.svg` or `.png`. Every plot goes through one
 //! backend helper, [`draw`], which picks the backend and decides whether text can be drawn
@@ -11,16 +13,18 @@
 //! | file | what it draws |
 //! |---|---|
 //! | `font.rs` | finding and registering the font PNG text needs |
-//! | `axes.rs` | the log-frequency magnitude frame shared by spectra and responses; axis labels |
+//! | `axes.rs` | the log-frequency magnitude frame shared by spectra and responses; axis labels; a panel's title and legend, placed so they never overlap |
 //! | `spectra.rs` | [`draw_spectra`]: measured against model, a panel per material |
 //! | `spectrogram.rs` | [`draw_spectrogram`]: a signal's spectrogram with its segments and colour bar |
 //! | `responses.rs` | [`draw_responses`]: magnitude responses in one panel |
+//! | `steps.rs` | [`draw_steps`]: steps in time, recorded against rendered, a panel per material |
 
 mod axes;
 mod font;
 mod responses;
 mod spectra;
 mod spectrogram;
+mod steps;
 
 use std::path::Path;
 
@@ -31,6 +35,7 @@ use plotters::prelude::*;
 pub use responses::{Curve, draw_responses};
 pub use spectra::{Panel, draw_spectra};
 pub use spectrogram::{Segment, draw_spectrogram};
+pub use steps::{StepPanel, draw_steps};
 
 /// The image formats a plot can be written in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -465,7 +465,28 @@ fn fit_report_gives_leave_one_out_on_gravel() {
     for h in held {
         let lsd = h["lsd_db"].as_f64().expect("number");
         assert!(lsd > 0.0 && lsd < 10.0, "{h}");
+        // In time: the left-out recording's steps and the other two's model rendered.
+        let recorded = h["recorded"]["duration_ms"].as_f64().expect("recorded D90");
+        let rendered = h["rendered"]["steps"]["duration_ms"]
+            .as_f64()
+            .expect("rendered D90");
+        assert!(recorded > 0.0 && rendered > 0.0, "{h}");
+        assert!(
+            (rendered / recorded).log2().abs() < 2.0,
+            "a model fitted on the other gravel recordings rings {rendered:.0} ms against \
+             {recorded:.0} ms: {h}"
+        );
     }
+    // The whole material's steps in time, both models.
+    let time = &r["materials"][0]["time"];
+    let recorded = time["recorded"]["duration_ms"].as_f64().expect("D90");
+    assert!(recorded > 100.0, "gravel steps last hundreds of ms: {time}");
+    for model in ["iir", "physical"] {
+        let steps = &time[model]["steps"];
+        assert_eq!(steps["steps"].as_u64(), Some(48), "{model}: {time}");
+        assert!(steps["events"].as_f64().expect("events") > 10.0, "{time}");
+    }
+    assert!(out.contains("in time"), "{out}");
     let mean = loo["mean_lsd_db"].as_f64().expect("mean");
     let in_sample = loo["mean_in_sample_lsd_db"].as_f64().expect("mean");
     assert!(in_sample <= mean, "{loo}");

@@ -53,10 +53,12 @@
 //!
 //! # Onsets
 //!
-//! A recording's steps start where [`super::measure`] found its strikes. A render's can
-//! be given (the engine knows its strikes) or found by [`find_steps`]: the first sample
-//! where the 5 ms RMS envelope comes within `onset_range` (40 dB) of the signal's
-//! loudest, after at least `onset_gap` (300 ms) below it.
+//! A recording's steps start where [`super::measure`] found its strikes. A render's are
+//! found by [`find_steps`]: the first sample where the 5 ms RMS envelope comes within
+//! `onset_range` (40 dB) of the signal's loudest, after at least `onset_gap` (300 ms)
+//! below it; or, where the walk's heel strikes are known, where the envelope rises
+//! through that threshold after each strike ([`onsets_near`]): the engine starts a step
+//! when the force crosses its detector's threshold, 10-20 ms after the foot lands.
 
 use serde::{Deserialize, Serialize};
 
@@ -349,6 +351,68 @@ pub(crate) fn describe_with(
     }
 }
 
+/// The onsets of the steps of a band-limited `signal` struck at `strikes` (sample
+/// indices, ascending), found as [`find_steps`] finds a recording's: each where the 5 ms
+/// RMS envelope rises through the threshold, the first such rise from `before` ahead of
+/// its strike up to `onset_gap` after it (and not past a neighbouring strike); the
+/// strike itself where there is no rise there (a tail still ringing, or no sound).
+///
+/// A strike is where the foot lands; a render's step starts where the engine's detector
+/// sees the force cross its threshold, some milliseconds later, and the band-limiting's
+/// zero-phase filter rings a little ahead of that as it does ahead of a recorded step.
+/// Measured from where the signal rises, a render's steps line up with a recording's.
+#[must_use]
+pub fn onsets_near(
+    signal: &[f64],
+    rate: SampleRate,
+    strikes: &[usize],
+    cfg: &StepConfig,
+) -> Vec<usize> {
+    let env = rms_envelope(signal, rate.samples_in(Seconds(0.005)).max(1));
+    let loudest = env.iter().copied().fold(0.0, f64::max);
+    let threshold = loudest * Decibels(-cfg.onset_range.0).to_amplitude();
+    let before = rate.samples_in(cfg.before);
+    let gap = rate.samples_in(cfg.onset_gap);
+    strikes
+        .iter()
+        .enumerate()
+        .map(|(i, &s)| {
+            let previous = if i == 0 { 0 } else { strikes[i - 1] + 1 };
+            let start = s.saturating_sub(before).max(previous).max(1);
+            let end = strikes
+                .get(i + 1)
+                .map_or(usize::MAX, |&n| n)
+                .min(s.saturating_add(gap))
+                .min(env.len());
+            (start..end)
+                .find(|&n| env[n - 1] <= threshold && env[n] > threshold)
+                .unwrap_or(s)
+        })
+        .collect()
+}
+
+/// As [`describe_all`] with the steps' strikes given (seconds into `samples`, ascending),
+/// each step measured from its onset near its strike ([`onsets_near`]).
+///
+/// # Errors
+/// As [`band_limit`].
+pub fn describe_struck(
+    samples: &[f64],
+    rate: SampleRate,
+    strikes: &[Seconds],
+    cfg: &StepConfig,
+) -> Result<Vec<Step>, AnalysisError> {
+    let y = band_limit(samples, rate, cfg)?;
+    let strikes: Vec<usize> = strikes.iter().map(|t| rate.samples_in(*t)).collect();
+    Ok(describe_onsets(
+        &y,
+        rate,
+        &onsets_near(&y, rate, &strikes, cfg),
+        cfg,
+        true,
+    ))
+}
+
 /// Every step of `samples` (not band-limited): at `onsets` (seconds into `samples`) when
 /// given, else where [`find_steps`] finds them. Each stretch stops where the next starts.
 ///
@@ -376,17 +440,29 @@ pub(crate) fn describe_all_with(
         Some(t) => t.iter().map(|t| rate.samples_in(*t)).collect(),
         None => find_steps(&y, rate, cfg),
     };
+    Ok(describe_onsets(&y, rate, &onsets, cfg, spectrum))
+}
+
+/// The steps of a band-limited `y` at `onsets` (sample indices), each cut where the next
+/// one's stretch begins.
+fn describe_onsets(
+    y: &[f64],
+    rate: SampleRate,
+    onsets: &[usize],
+    cfg: &StepConfig,
+    spectrum: bool,
+) -> Vec<Step> {
     let before = rate.samples_in(cfg.before);
-    Ok(onsets
+    onsets
         .iter()
         .enumerate()
         .map(|(i, &o)| {
             let limit = onsets
                 .get(i + 1)
                 .map_or(usize::MAX, |next| next.saturating_sub(before));
-            describe_with(&y, rate, o, limit, cfg, spectrum)
+            describe_with(y, rate, o, limit, cfg, spectrum)
         })
-        .collect())
+        .collect()
 }
 
 /// The centred moving RMS of `x` over `n` samples (`n` odd or even; zero outside `x`).
@@ -712,6 +788,37 @@ mod tests {
             vec![2]
         );
         assert_eq!(find_peaks(&y, 3.5, 1, 0.0), vec![1, 3]);
+    }
+
+    #[test]
+    fn onsets_follow_strikes_to_where_the_sound_starts() {
+        // Two bursts 15 ms after their strikes; a third strike on a tail still ringing
+        // and a fourth that makes no sound keep their strike times.
+        let r = rate();
+        let mut y = vec![0.0; 5 * 8000];
+        let burst = |y: &mut Vec<f64>, at: usize, len: usize| {
+            for (n, v) in y[at..at + len].iter_mut().enumerate() {
+                *v = (2.0 * std::f64::consts::PI * 200.0 * n as f64 / 8000.0).sin();
+            }
+        };
+        burst(&mut y, 8000 + 120, 400);
+        burst(&mut y, 16_000 + 120, 400);
+        burst(&mut y, 24_000 - 2000, 2400);
+        let strikes = [8000, 16_000, 24_000, 32_000];
+        let on = onsets_near(&y, r, &strikes, &StepConfig::default());
+        // The 5 ms envelope is centred: it rises about 20 samples ahead of the burst.
+        assert!((100..=120).contains(&(on[0] - 8000)), "{on:?}");
+        assert_eq!(on[1] - on[0], 8000, "{on:?}");
+        assert_eq!(&on[2..], &[24_000, 32_000], "{on:?}");
+        let cfg = StepConfig::default();
+        let yb = band_limit(&y, r, &cfg).unwrap();
+        let steps = describe_struck(&y, r, &[Seconds(1.0), Seconds(2.0)], &cfg).unwrap();
+        // Measured on the band-limited signal, whose zero-phase filter rings ahead of the
+        // burst (here 19 ms): where that rises, as a recording's onset is found.
+        let ahead = onsets_near(&yb, r, &strikes[..2], &cfg);
+        assert!(ahead[0] > 8000 - 400 && ahead[0] < on[0], "{ahead:?}");
+        assert_eq!(ahead[1] - ahead[0], 8000, "{ahead:?}");
+        assert!((steps[0].onset.0 - ahead[0] as f64 / 8000.0).abs() < 1e-12);
     }
 
     #[test]

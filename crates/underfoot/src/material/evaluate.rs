@@ -6,7 +6,7 @@
 //! against (and uses [`crate::analysis`] to measure), so the engine that renders knows
 //! nothing of analysis, fitting or recordings.
 
-use crate::analysis::steps::{StepConfig, StepSummary, describe_all, summarize};
+use crate::analysis::steps::{StepConfig, StepSummary, describe_all, describe_struck, summarize};
 use crate::analysis::{AnalysisConfig, AnalysisError, measure};
 use crate::material::MaterialModel;
 use crate::recording::Recording;
@@ -64,8 +64,9 @@ pub struct StepComparison {
     pub level_db: f64,
 }
 
-/// The steps of a rendered stretch `samples` of `model` (at `onsets`, seconds into it,
-/// or found as a recording's are), measured in time and compared with the recorded ones;
+/// The steps of a rendered stretch `samples` of `model` (struck at `onsets`, seconds into
+/// it, each measured from where its sound starts after its strike; or found as a
+/// recording's are), measured in time and compared with the recorded ones;
 /// `None` for a material without recorded time statistics (a file before format 3).
 /// `gain` is the output gain the stretch was rendered with.
 ///
@@ -86,7 +87,10 @@ pub fn compare_steps(
         ..StepConfig::default()
     };
     let x: Vec<f64> = samples.iter().map(|v| f64::from(*v)).collect();
-    let steps = describe_all(&x, rate, onsets, &cfg)?;
+    let steps = match onsets {
+        Some(strikes) => describe_struck(&x, rate, strikes, &cfg)?,
+        None => describe_all(&x, rate, None, &cfg)?,
+    };
     let rendered = summarize(&steps, &cfg);
     if rendered.spectrum_db.len() != recorded.spectrum_db.len() || steps.is_empty() {
         return Ok(Some(StepComparison {
