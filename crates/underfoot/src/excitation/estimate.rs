@@ -822,15 +822,20 @@ impl FftConvolver {
         out
     }
 
-    /// `(x * k)[n]` for `n < len`.
-    fn convolve(&self, x: &[f64]) -> Vec<f64> {
+    /// The transform of `x` times the kernel's (or its conjugate's: a correlation), back.
+    fn product(&self, x: &[f64], conjugate: bool) -> Vec<f64> {
         let spec: Vec<Complex64> = self
             .transform(x)
             .iter()
             .zip(&self.spectrum)
-            .map(|(a, b)| a * b)
+            .map(|(a, b)| if conjugate { a * b.conj() } else { a * b })
             .collect();
-        let mut out = self.back(spec);
+        self.back(spec)
+    }
+
+    /// `(x * k)[n]` for `n < len`.
+    fn convolve(&self, x: &[f64]) -> Vec<f64> {
+        let mut out = self.product(x, false);
         out.truncate(self.len);
         out
     }
@@ -838,26 +843,14 @@ impl FftConvolver {
     /// The whole causal convolution `x * k` (`x.len() + k.len() - 1` samples, at most the
     /// transform's size).
     fn convolve_full(&self, x: &[f64], k_len: usize) -> Vec<f64> {
-        let spec: Vec<Complex64> = self
-            .transform(x)
-            .iter()
-            .zip(&self.spectrum)
-            .map(|(a, b)| a * b)
-            .collect();
-        let mut out = self.back(spec);
+        let mut out = self.product(x, false);
         out.truncate((x.len() + k_len).saturating_sub(1).min(self.size));
         out
     }
 
     /// `(x ⋆ k)[n] = Σ_m x[n + m] k[m]` for `n < len`.
     fn correlate(&self, x: &[f64]) -> Vec<f64> {
-        let spec: Vec<Complex64> = self
-            .transform(x)
-            .iter()
-            .zip(&self.spectrum)
-            .map(|(a, b)| a * b.conj())
-            .collect();
-        let mut out = self.back(spec);
+        let mut out = self.product(x, true);
         out.truncate(self.len);
         out
     }
