@@ -2,9 +2,11 @@
 //!
 //! They are a crate of their own because criterion and its dependencies take about a
 //! minute and a half of CPU to build; as dev-dependencies of the library they were built
-//! for every `cargo test`. This library holds only what several benches share.
+//! for every `cargo test`. This library holds only what the benches share: the shared
+//! recordings, and the timings a bench derives its printed figures from ([`Samples`]).
 
 use std::path::PathBuf;
+use std::time::{Duration, Instant};
 
 use underfoot::recording::{Recording, read};
 
@@ -24,4 +26,58 @@ pub fn shared_recordings(material: &str) -> Option<Vec<Recording>> {
         .collect();
     files.sort();
     files.iter().map(|p| read(p, None).ok()).collect()
+}
+
+/// What each sample of a bench took per unit of work (a sample of audio, a channel's
+/// sample), kept so that a bench can print figures derived from criterion's own
+/// measurements (channels per core, one bench over another): criterion keeps its
+/// estimates to itself. Fed from `Bencher::iter_custom` through [`Samples::time`].
+#[derive(Debug, Default, Clone)]
+pub struct Samples {
+    /// Seconds per unit, one entry per call, warm-up included.
+    per_unit: Vec<f64>,
+}
+
+impl Samples {
+    /// Runs `iterations` times `f`, which returns the units of work it did, and records
+    /// the time per unit; returns the time taken, for `iter_custom`.
+    pub fn time(&mut self, iterations: u64, mut f: impl FnMut() -> u64) -> Duration {
+        let start = Instant::now();
+        let mut units = 0u64;
+        for _ in 0..iterations {
+            units += f();
+        }
+        let elapsed = start.elapsed();
+        if units > 0 {
+            self.per_unit.push(elapsed.as_secs_f64() / units as f64);
+        }
+        elapsed
+    }
+
+    /// The median time per unit, in seconds, over the last `sample_size` calls (criterion
+    /// calls the routine for its warm-up first, then once per sample), or over all of them
+    /// when there were fewer (`--test` runs each bench once); `None` if the bench did not
+    /// run (filtered out).
+    #[must_use]
+    pub fn median(&self, sample_size: usize) -> Option<f64> {
+        let start = self.per_unit.len().saturating_sub(sample_size);
+        let mut last = self.per_unit[start..].to_vec();
+        if last.is_empty() {
+            return None;
+        }
+        last.sort_by(f64::total_cmp);
+        let n = last.len();
+        Some(if n % 2 == 1 {
+            last[n / 2]
+        } else {
+            0.5 * (last[n / 2 - 1] + last[n / 2])
+        })
+    }
+}
+
+/// How many channels one core renders in real time at `rate` Hz when one channel's sample
+/// takes `seconds_per_sample`.
+#[must_use]
+pub fn channels_per_core(seconds_per_sample: f64, rate: f64) -> f64 {
+    1.0 / (seconds_per_sample * rate)
 }

@@ -3,21 +3,28 @@
 //! Everything that happens on the audio thread is exercised: all three drives, force
 //! readings, steps, material switches mid-walk (crossfades), a material replaced in the
 //! bank, non-finite input, the limiter working, the watchdog fading out (after the
-//! compensation, in the output stage) and the shut-down fade. The physical aggregate model
-//! too: Poisson events, retuned slots, stolen slots, explicit strikes and resets. And the
-//! paced pseudo-device of a live session's `null` output (`live::PacedDevice`), whose
-//! render stands in for a device's callback: the engine inside it and its clock, on time,
-//! late and stalled.
+//! compensation, in the output stage) and the shut-down fade. Each step's excitation: the
+//! fitted trains of micro-impacts of the built-ins through the IIR voice and the physical
+//! models, struck mid-block, on explicit steps and across material changes, and the
+//! generator alone at its cap of draws a sample. The physical aggregate model too: Poisson
+//! events, retuned slots, stolen slots, explicit strikes and resets. And the paced
+//! pseudo-device of a live session's `null` output (`live::PacedDevice`), whose render
+//! stands in for a device's callback: the engine inside it and its clock, on time, late
+//! and stalled.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
+use std::sync::OnceLock;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use underfoot::compensation::chain::Compensation;
 use underfoot::compensation::equalizer::{EqualizerConfig, Realisation, SpectralWeights};
+use underfoot::engine::offline::track_events;
 use underfoot::engine::{self, EngineConfig, Event, MaterialBank, TimedEvent};
+use underfoot::excitation::clock::nominal_speeds;
+use underfoot::excitation::{ExcitationModel, Generator, Tables};
 use underfoot::force::SensorReading;
-use underfoot::force::gait::nominal_step;
+use underfoot::force::gait::{GaitConfig, generate, nominal_step};
 use underfoot::material::builtin::builtin;
 use underfoot::physical::{Aggregate, AggregateParams, SurfaceMode};
 use underfoot::signal::butterworth;
@@ -73,11 +80,29 @@ fn the_counter_sees_allocations() {
     assert!(allocations_in(|| drop(std::hint::black_box(vec![1u8; 64]))) >= 2);
 }
 
+/// The built-in library prepared for the IIR voice and for the physical models, with
+/// the excitations fitted to each material. Preparing a bank (a modal fit per material) is
+/// most of these tests' time, and it happens before any engine exists: once for all of
+/// them, cloned for each case.
+fn banks() -> &'static (MaterialBank, MaterialBank) {
+    static BANKS: OnceLock<(MaterialBank, MaterialBank)> = OnceLock::new();
+    BANKS.get_or_init(|| {
+        let rate = SampleRate(48_000);
+        let step = nominal_step(70.0, 1.8, rate.hz());
+        let bank_for = |model| {
+            let voice = VoiceConfig {
+                model,
+                ..VoiceConfig::default()
+            };
+            MaterialBank::prepare(builtin(), rate, &voice, &step, Newtons::weight_of(70.0)).unwrap()
+        };
+        (bank_for(SynthModel::Iir), bank_for(SynthModel::Physical))
+    })
+}
+
 #[test]
 fn rendering_never_allocates_or_frees() {
     let rate = SampleRate(48_000);
-    let weight = Newtons::weight_of(70.0);
-    let step = nominal_step(70.0, 1.8, rate.hz());
     // The last case runs every channel through a low-delay equalizer and a limb filter.
     let mut weights = SpectralWeights::flat(EqualizerConfig::default(), rate).unwrap();
     weights.add_in_band(|f| 6.0 * (-((f.0 - 300.0) / 80.0).powi(2)).exp());
@@ -85,15 +110,11 @@ fn rendering_never_allocates_or_frees() {
         equalizer: Some((weights, Realisation::LowDelay { taps: 512 })),
         limb: Some(butterworth::lowpass(2, Hz(1500.0), rate).unwrap()),
     };
-    // Preparing a bank (a modal fit per material) is most of this test's time, and it
-    // happens before the engine exists: once per model, cloned for each case.
     let voice_for = |model| VoiceConfig {
         model,
         ..VoiceConfig::default()
     };
-    let bank_for =
-        |model| MaterialBank::prepare(builtin(), rate, &voice_for(model), &step, weight).unwrap();
-    let (iir_bank, physical_bank) = (bank_for(SynthModel::Iir), bank_for(SynthModel::Physical));
+    let (iir_bank, physical_bank) = banks();
     for (drive, model, compensated) in [
         ("impulse", SynthModel::Iir, false),
         ("force", SynthModel::Iir, false),
@@ -229,15 +250,7 @@ fn the_paced_pseudo_device_never_allocates_or_frees() {
     use underfoot::live::PacedDevice;
 
     let rate = SampleRate(48_000);
-    let step = nominal_step(70.0, 1.8, rate.hz());
-    let bank = MaterialBank::prepare(
-        builtin(),
-        rate,
-        &VoiceConfig::default(),
-        &step,
-        Newtons::weight_of(70.0),
-    )
-    .unwrap();
+    let bank = banks().0.clone();
     let config = EngineConfig {
         channels: 2,
         ..EngineConfig::default()
@@ -276,6 +289,160 @@ fn the_paced_pseudo_device_never_allocates_or_frees() {
     assert!(report.late >= 2, "{report:?}");
     let t = ctl.telemetry();
     assert!(t.strikes > 0 && t.stopped, "{t:?}");
+}
+
+/// Every built-in but `hard` plays a train of micro-impacts after its heel (thousands a
+/// second of step clock on sand and snow). Through the engine, for the IIR voice and for
+/// the physical models, with the default `impulse` drive: channel 0 walks (a generated
+/// gait, its readings at their frames, so its strikes fall mid-block), channel 1 walks the
+/// same readings sent without a frame (the sensor clock places them), channel 2 gets an
+/// explicit step every 0.3 s (its trains run on the free clock, one after the other), and
+/// every channel changes material 0.1 s after each of its steps, while the train runs;
+/// blocks of 1 to 512 frames.
+///
+/// The drive meter shows that the trains played inside the watched calls: a heel sounds
+/// in the call of its strike, so a call without a strike whose drive is not zero played
+/// micro-impacts. If the generator allocated for one, this test would fail.
+#[test]
+fn trains_of_micro_impacts_never_allocate_or_free() {
+    let rate = SampleRate(48_000);
+    let gait = generate(&GaitConfig {
+        steps: 6,
+        channels: 1,
+        lead_in: Seconds(0.1),
+        tail: Seconds(0.3),
+        ..GaitConfig::default()
+    })
+    .unwrap();
+    let walk = track_events(&gait.track, rate);
+    let frames = walk.last().and_then(|e| e.at).unwrap() + 4800;
+    let step_every = 14_400;
+    let (iir_bank, physical_bank) = banks();
+    for (model, bank) in [
+        (SynthModel::Iir, iir_bank),
+        (SynthModel::Physical, physical_bank),
+    ] {
+        let trains: Vec<u16> = (0..bank.materials().len())
+            .filter(|&k| bank.materials()[k].excitation.bins() > 0)
+            .map(|k| k as u16)
+            .collect();
+        assert!(trains.len() >= 10, "{model:?}: {trains:?} play trains");
+        // The control side's schedule, made before the engine runs: channel 0's readings,
+        // channel 2's steps, and the material changes 0.1 s into each step.
+        let mut timed: Vec<TimedEvent> = walk.clone();
+        let change = |k: usize, channel: u16, at: u64| {
+            let slot = trains[(k + usize::from(channel)) % trains.len()];
+            TimedEvent::at(at + 4800, Event::Material { channel, slot })
+        };
+        for (k, strike) in gait.strikes[0].iter().enumerate() {
+            let at = (strike.0 * rate.hz()).round() as u64;
+            timed.extend([change(k, 0, at), change(k, 1, at)]);
+        }
+        for (k, at) in (37..frames).step_by(step_every).enumerate() {
+            let step = Event::Step {
+                channel: 2,
+                intensity: 1.0,
+            };
+            timed.extend([TimedEvent::at(at, step), change(k, 2, at)]);
+        }
+        timed.sort_by_key(|e| e.at);
+        let config = EngineConfig {
+            channels: 3,
+            ..EngineConfig::default()
+        };
+        let (mut ctl, mut eng) = engine::build(&config, bank.clone(), &trains[..3]).unwrap();
+        let meters = ctl.telemetry_handle();
+        let mut out = vec![0.0f32; 512 * 3];
+        let (mut next, mut live, mut frame) = (0, 0, 0u64);
+        let mut strikes = [0u64; 3];
+        let mut train_calls = [0usize; 3];
+        let mut calls = 0usize;
+        while frame < frames {
+            let n = [1, 7, 64, 333, 512, 480][calls % 6];
+            let end = frame + n as u64;
+            while let Some(e) = timed.get(next).filter(|e| e.at.unwrap() < end) {
+                ctl.send(*e).unwrap();
+                next += 1;
+            }
+            // Channel 1's readings, sent in the call their frame falls in, as a live
+            // source sends them.
+            while let Some(e) = walk.get(live).filter(|e| e.at.unwrap() < end) {
+                let Event::Force { reading, .. } = e.event else {
+                    unreachable!("the walk is readings")
+                };
+                ctl.send(TimedEvent::now(Event::Force {
+                    channel: 1,
+                    reading,
+                }))
+                .unwrap();
+                live += 1;
+            }
+            let buf = &mut out[..n * 3];
+            let allocated = allocations_in(|| eng.process(buf, 3));
+            assert_eq!(
+                allocated, 0,
+                "{model:?}: call {calls} allocated {allocated} times"
+            );
+            assert!(buf.iter().all(|v| v.is_finite()));
+            for (c, (count, trained)) in strikes.iter_mut().zip(&mut train_calls).enumerate() {
+                let m = meters.take_channel(c).unwrap();
+                if m.strikes == *count && m.drive > 0.0 {
+                    *trained += 1;
+                }
+                *count = m.strikes;
+            }
+            ctl.collect();
+            frame = end;
+            calls += 1;
+        }
+        // Six strikes a walk and a step every 0.3 s; trains in hundreds of calls.
+        assert!(
+            strikes[0] >= 6 && strikes[1] >= 6 && strikes[2] >= 20,
+            "{strikes:?}"
+        );
+        assert!(
+            train_calls.iter().all(|&t| t >= 100),
+            "{model:?}: calls with micro-impacts and no strike: {train_calls:?} of {calls}"
+        );
+        let t = ctl.telemetry();
+        assert_eq!(t.rejected, 0, "{t:?}");
+        assert!(t.peak > 0.0, "{t:?}");
+    }
+}
+
+/// The generator alone, over every built-in's excitation: a strike through a nominal step,
+/// a free step restruck mid-train at speeds that are zero, not a number, nominal, and fast
+/// enough that more micro-impacts are due in a sample than it draws (`MAX_DRAWS`), then a
+/// stop.
+#[test]
+fn the_excitation_generator_never_allocates_or_frees() {
+    let rate = SampleRate(48_000);
+    let speeds = nominal_speeds(rate);
+    let mut out = vec![0.0f32; speeds.len()];
+    for m in &builtin().materials {
+        let model = m
+            .excitation
+            .clone()
+            .unwrap_or_else(ExcitationModel::heel_only);
+        let tables = Tables::new(&model, rate).unwrap();
+        let has_train = tables.bins() > 0;
+        let mut g = Generator::new(7);
+        let allocated = allocations_in(|| {
+            g.strike(&tables, 1.0);
+            g.process(&tables, &speeds, &mut out);
+            g.step(&tables, 0.8);
+            for (k, y) in out.iter_mut().enumerate() {
+                *y = g.next(&tables, [0.0, f32::NAN, 1.0, 1000.0][k % 4]);
+                if k == 5000 {
+                    g.strike(&tables, 2.0);
+                }
+            }
+            g.stop();
+            g.process(&tables, &speeds, &mut out);
+        });
+        assert_eq!(allocated, 0, "{}: allocated {allocated} times", m.name);
+        assert!(!has_train || g.events() > 100, "{}: {}", m.name, g.events());
+    }
 }
 
 #[test]

@@ -33,13 +33,6 @@ const SHORTFALLS: &[(&str, Figure, f64, &str)] = &[
          the deconvolution gives the knock's energy partly to the train",
     ),
     (
-        "sand",
-        Figure::Spectrum,
-        2.4,
-        "2.1 dB: the fitted filter itself is 1.5 dB from these steps' spectrum (the fit's \
-         strike windows are not the steps)",
-    ),
-    (
         "water",
         Figure::Spectrum,
         2.4,
@@ -51,7 +44,8 @@ const SHORTFALLS: &[(&str, Figure, f64, &str)] = &[
         Figure::Spectrum,
         1.8,
         "1.5 dB: a single recording, whose one step's spectrum has a band-to-band ripple \
-         no smooth model follows (the filter itself is 1.4 dB from it)",
+         that the fitted filter, sampled on the fit's grid, misses: one impulse a step through \
+         it is already 1.4 dB from the recording",
     ),
 ];
 

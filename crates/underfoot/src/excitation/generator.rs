@@ -224,22 +224,31 @@ impl Generator {
     /// non-finite counts as 0).
     #[inline]
     pub fn next(&mut self, tables: &Tables, speed: f32) -> f32 {
+        // Most samples of a walk play no step: kept this small, the test inlines into the
+        // caller's loop and an idle generator costs a load and a branch there.
         if !self.active {
             return 0.0;
         }
+        self.next_active(tables, speed)
+    }
+
+    /// [`next`](Self::next) while a step is playing.
+    fn next_active(&mut self, tables: &Tables, speed: f32) -> f32 {
         let mut y = 0.0f32;
         if self.heel_due {
             self.heel_due = false;
             y = tables.heel * self.gain;
         }
-        let bin = (self.pos * tables.inv_bin) as usize;
+        // Through `u32`, a shorter conversion than to `usize` with the same bin: a product
+        // past `u32::MAX` saturates there, past the last bin as `usize::MAX` is.
+        let bin = (self.pos * tables.inv_bin) as u32 as usize;
         if bin >= tables.bins {
             self.active = false;
             return y;
         }
         let v = if self.free {
             1.0
-        } else if speed > 0.0 && speed.is_finite() {
+        } else if speed > 0.0 && speed < f32::INFINITY {
             f64::from(speed)
         } else {
             0.0
@@ -255,7 +264,10 @@ impl Generator {
                 if ((r >> 32) as f64) < due {
                     let q = tables.quantiles[((r >> 24) & 0xFF) as usize];
                     let a = tables.amplitude[bin] * q * self.gain;
-                    y += if r & (1 << 23) == 0 { a } else { -a };
+                    // The sign is bit 23 of the draw, put into `a`'s sign bit (all that
+                    // `-a` flips): a branch on it would be mispredicted every other event.
+                    let sign = ((r >> 23) as u32 & 1) << 31;
+                    y += f32::from_bits(a.to_bits() ^ sign);
                     self.events += 1;
                 }
                 due -= TWO_32;
@@ -268,9 +280,17 @@ impl Generator {
 
     /// `out[n]` = the next sample at `speed[n]`, over the shorter of the two.
     pub fn process(&mut self, tables: &Tables, speed: &[f32], out: &mut [f32]) {
-        for (y, v) in out.iter_mut().zip(speed) {
-            *y = self.next(tables, *v);
+        let n = out.len().min(speed.len());
+        let mut played = 0;
+        for (y, v) in out[..n].iter_mut().zip(speed) {
+            if !self.active {
+                break;
+            }
+            *y = self.next_active(tables, *v);
+            played += 1;
         }
+        // Only a strike starts a step again: the rest of the block is silent.
+        out[played..n].fill(0.0);
     }
 }
 

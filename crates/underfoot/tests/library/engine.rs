@@ -4,7 +4,7 @@
 use underfoot::engine::{self, Controller, Engine, EngineConfig, Event, MaterialBank, TimedEvent};
 use underfoot::force::SensorReading;
 use underfoot::material::builtin::builtin;
-use underfoot::synthesis::{SynthModel, VoiceConfig};
+use underfoot::synthesis::{ExcitationChoice, SynthModel, VoiceConfig};
 use underfoot::units::{Newtons, SampleRate};
 
 const RATE: SampleRate = SampleRate(48_000);
@@ -19,13 +19,17 @@ fn bank() -> MaterialBank {
 }
 
 fn bank_for(model: SynthModel) -> MaterialBank {
+    bank_with(&VoiceConfig {
+        model,
+        ..VoiceConfig::default()
+    })
+}
+
+fn bank_with(voice: &VoiceConfig) -> MaterialBank {
     MaterialBank::prepare(
         builtin(),
         RATE,
-        &VoiceConfig {
-            model,
-            ..VoiceConfig::default()
-        },
+        voice,
         &nominal_step(),
         Newtons::weight_of(70.0),
     )
@@ -37,7 +41,22 @@ fn engine_with(config: &EngineConfig, material: &str) -> (Controller, Engine) {
 }
 
 fn engine_for(config: &EngineConfig, material: &str, model: SynthModel) -> (Controller, Engine) {
-    let bank = bank_for(model);
+    engine_with_voice(
+        config,
+        material,
+        &VoiceConfig {
+            model,
+            ..VoiceConfig::default()
+        },
+    )
+}
+
+fn engine_with_voice(
+    config: &EngineConfig,
+    material: &str,
+    voice: &VoiceConfig,
+) -> (Controller, Engine) {
+    let bank = bank_with(voice);
     let slot = bank.slot(material).unwrap();
     let initial = vec![slot; config.channels];
     engine::build(config, bank, &initial).unwrap()
@@ -94,7 +113,22 @@ fn render_model(
     frames: usize,
     model: SynthModel,
 ) -> Vec<f32> {
-    let (mut ctl, mut eng) = engine_for(config, material, model);
+    let voice = VoiceConfig {
+        model,
+        ..VoiceConfig::default()
+    };
+    render_voice(config, material, events, block, frames, &voice)
+}
+
+fn render_voice(
+    config: &EngineConfig,
+    material: &str,
+    events: &[TimedEvent],
+    block: usize,
+    frames: usize,
+    voice: &VoiceConfig,
+) -> Vec<f32> {
+    let (mut ctl, mut eng) = engine_with_voice(config, material, voice);
     let dc = config.channels;
     let mut out = vec![0.0; frames * dc];
     let mut next = 0;
@@ -112,9 +146,44 @@ fn render_model(
     out
 }
 
+/// The walk of [`walk_events`] on two channels, and an explicit step on channel 1 between
+/// two of its strikes: its train runs on the free clock, over the walk's.
+fn walk_and_step() -> Vec<TimedEvent> {
+    let mut events = walk_events(2, 1.0);
+    events.push(TimedEvent::at(
+        20_011,
+        Event::Step {
+            channel: 1,
+            intensity: 1.2,
+        },
+    ));
+    events.sort_by_key(|e| e.at);
+    events
+}
+
+/// The share of channel 0's energy from 0.1 s into each of [`walk_events`]' steps to the
+/// next: where a step's train still plays (its clock runs while the force changes, loading
+/// and unloading), and one impulse through gravel's filter has rung out.
+fn late_share(out: &[f32], channels: usize) -> f64 {
+    let (mut late, mut all) = (0.0, 0.0);
+    for (n, frame) in out.chunks(channels).enumerate() {
+        let e = f64::from(frame[0]).powi(2);
+        all += e;
+        if (n as f64 / RATE.hz()) % 0.5 >= 0.1 {
+            late += e;
+        }
+    }
+    late / all.max(f64::MIN_POSITIVE)
+}
+
+/// Gravel's fitted excitation, a heel and a train of micro-impacts (about 1600 over a
+/// nominal step), is what the walk plays: it lasts, where one impulse a step rings out. A
+/// drive that feeds the IIR voice the force itself plays no excitation.
 #[test]
 #[ignore = "slow tier: long renders"]
 fn output_is_identical_for_blocks_of_1_7_64_and_512_frames() {
+    let gravel = builtin().get("gravel").unwrap().excitation.clone().unwrap();
+    assert!(gravel.expected_events() > 1000.0);
     for drive in ["impulse", "force", "force-rate"] {
         let config = EngineConfig {
             channels: 2,
@@ -122,10 +191,19 @@ fn output_is_identical_for_blocks_of_1_7_64_and_512_frames() {
             ..EngineConfig::default()
         };
         let frames = 48_000;
-        let events = walk_events(2, 1.0);
+        let events = walk_and_step();
         let reference = render(&config, "gravel", &events, 512, frames);
         let energy: f64 = reference.iter().map(|v| f64::from(*v).powi(2)).sum();
         assert!(energy > 1e-6, "{drive}: the walk is audible ({energy})");
+        if drive == "impulse" {
+            let heel = VoiceConfig {
+                excitation: ExcitationChoice::Heel,
+                ..VoiceConfig::default()
+            };
+            let heel = render_voice(&config, "gravel", &events, 512, frames, &heel);
+            let (train, one) = (late_share(&reference, 2), late_share(&heel, 2));
+            assert!(train > 0.2 && train > 10.0 * one, "{train} against {one}");
+        }
         for block in [1, 7, 64] {
             let out = render(&config, "gravel", &events, block, frames);
             assert!(out == reference, "{drive}: block {block} differs");
@@ -143,7 +221,7 @@ fn the_physical_model_is_block_size_invariant_too() {
         ..EngineConfig::default()
     };
     let frames = 48_000;
-    let mut events = walk_events(2, 1.0);
+    let mut events = walk_and_step();
     let hard = bank_for(SynthModel::Physical).slot("hard").unwrap();
     events.push(TimedEvent::at(
         30_000,
@@ -165,6 +243,15 @@ fn the_physical_model_is_block_size_invariant_too() {
     assert!(energy > 1e-6, "the physical walk is audible ({energy})");
     let iir = render(&config, "gravel", &events, 512, frames);
     assert!(iir != reference, "the physical model is not the filter");
+    // Struck by gravel's train, not by one impulse a step.
+    let heel = VoiceConfig {
+        model: SynthModel::Physical,
+        excitation: ExcitationChoice::Heel,
+        ..VoiceConfig::default()
+    };
+    let heel = render_voice(&config, "gravel", &events, 512, frames, &heel);
+    let (train, one) = (late_share(&reference, 2), late_share(&heel, 2));
+    assert!(train > 0.2 && train > 10.0 * one, "{train} against {one}");
     for block in [1, 7, 64] {
         let out = render_model(
             &config,
