@@ -635,12 +635,22 @@ fn jack_live_walk_plays_as_the_offline_render() {
         .map(|v| f32::from_bits(v.load(Ordering::Relaxed)))
         .collect();
 
+    // A step starts where the output comes within 30 dB of the offline render's loudest
+    // sample: materials play at their recorded loudness (gravel's steps peak near -33
+    // dBFS), so the threshold follows the render rather than full scale.
+    let loudest = offline.samples.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    let threshold = loudest * 10f32.powf(-30.0 / 20.0);
     let steps = |y: &[f32]| {
-        let threshold = 10f32.powf(-30.0 / 20.0);
+        // After 0.3 s below the threshold: a step's train of micro-impacts crosses it
+        // many times over a few hundred milliseconds.
         let mut onsets: Vec<usize> = Vec::new();
+        let mut last: Option<usize> = None;
         for (i, v) in y.iter().enumerate() {
-            if v.abs() > threshold && onsets.last().is_none_or(|&o| i > o + 14_400) {
-                onsets.push(i);
+            if v.abs() > threshold {
+                if last.is_none_or(|l| i > l + 14_400) {
+                    onsets.push(i);
+                }
+                last = Some(i);
             }
         }
         onsets
