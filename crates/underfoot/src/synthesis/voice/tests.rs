@@ -11,6 +11,25 @@ fn prepared(name: &str) -> PreparedMaterial {
     PreparedMaterial::prepare(model, SampleRate(48_000), &VoiceConfig::default()).unwrap()
 }
 
+/// The DFT at each of `grid`'s frequencies of `n` samples of what `voice` plays for a
+/// unit impulse, from rest.
+fn impulse_spectrum(voice: &mut Voice, rate: SampleRate, n: usize, grid: &[Hz]) -> Vec<Complex64> {
+    let mut x = vec![0.0f32; n];
+    x[0] = 1.0;
+    let mut y = vec![0.0f32; n];
+    voice.reset();
+    voice.process(&x, &mut y);
+    grid.iter()
+        .map(|f| {
+            let omega = rate.omega(*f);
+            y.iter()
+                .enumerate()
+                .map(|(k, v)| f64::from(*v) * Complex64::from_polar(1.0, -omega * k as f64))
+                .sum()
+        })
+        .collect()
+}
+
 #[test]
 fn voice_runs_its_prepared_response() {
     let m = prepared("gravel");
@@ -85,20 +104,9 @@ fn each_step_has_its_own_spectrum_a_few_percent_off() {
     let grid = model.band_hz.log_grid(48);
     let n = rate.samples_in(Seconds(0.5));
     let spectrum = |voice: &mut Voice| -> Vec<f64> {
-        let mut x = vec![0.0f32; n];
-        x[0] = 1.0;
-        let mut y = vec![0.0f32; n];
-        voice.reset();
-        voice.process(&x, &mut y);
-        grid.iter()
-            .map(|f| {
-                let omega = rate.omega(*f);
-                y.iter()
-                    .enumerate()
-                    .map(|(k, v)| f64::from(*v) * Complex64::from_polar(1.0, -omega * k as f64))
-                    .sum::<Complex64>()
-                    .norm()
-            })
+        impulse_spectrum(voice, rate, n, &grid)
+            .iter()
+            .map(|h| h.norm())
             .collect()
     };
     let mut voice = Voice::new();
@@ -174,22 +182,9 @@ fn the_perturbation_leaves_the_average_spectrum_where_it_was() {
         }
         let grid = model.band_hz.log_grid(40);
         let power = |voice: &mut Voice| -> Vec<f64> {
-            let mut x = vec![0.0f32; n];
-            x[0] = 1.0;
-            let mut y = vec![0.0f32; n];
-            voice.reset();
-            voice.process(&x, &mut y);
-            grid.iter()
-                .map(|f| {
-                    let step = Complex64::from_polar(1.0, -rate.omega(*f));
-                    let mut w = Complex64::new(1.0, 0.0);
-                    let mut acc = Complex64::new(0.0, 0.0);
-                    for v in &y {
-                        acc += f64::from(*v) * w;
-                        w *= step;
-                    }
-                    acc.norm_sqr()
-                })
+            impulse_spectrum(voice, rate, n, &grid)
+                .iter()
+                .map(|h| h.norm_sqr())
                 .collect()
         };
         let mut voice = Voice::new();
