@@ -32,7 +32,10 @@
 //!   `prominence`. Each event keeps its time from the onset and its level relative to
 //!   the loudest;
 //! - **crest factor**: the largest `|x|` over the RMS of `x` in the `crest_span` (350 ms)
-//!   from `before` ahead of the onset;
+//!   from `before` ahead of the onset, `|x|` between samples too (its true peak, by
+//!   windowed-sinc interpolation around the largest samples): a step measured at 4 kHz
+//!   and at 48 kHz then has the same crest factor, where the largest sample at 4 kHz can
+//!   miss a 900 Hz peak by 2.4 dB;
 //! - **decay envelope**: the energy in consecutive `decay_bin` (10 ms) bins from the
 //!   onset, in dB re the loudest bin;
 //! - **band spectrum**: the power `|X(f)|²` of the whole zero-padded stretch, averaged over
@@ -601,13 +604,61 @@ fn find_peaks(y: &[f64], height: f64, distance: usize, prominence: f64) -> Vec<u
 }
 
 fn crest(x: &[f64]) -> Decibels {
-    let peak = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let peak = true_peak(x);
     let rms = (x.iter().map(|v| v * v).sum::<f64>() / x.len().max(1) as f64).sqrt();
     if rms > 0.0 {
         Decibels::from_amplitude(peak / rms)
     } else {
         Decibels(0.0)
     }
+}
+
+/// Half the length of the interpolation kernel of [`true_peak`], in samples.
+const PEAK_TAPS: usize = 16;
+
+/// The largest `|x(t)|` of the band-limited signal whose samples are `x`, between samples
+/// too: `x(t) = Σ_n x[n] sinc(t - n) w(t - n)`, `w` a Hann window over `±PEAK_TAPS`,
+/// evaluated at eighths of a sample within one sample of each local maximum of `|x|`
+/// within 3 dB of the largest sample. Between two samples a band-limited signal can
+/// peak above both by up to `1/cos(π f_max / f_s)`: 2.4 dB at 4 kHz for a 900 Hz band,
+/// 0.01 dB at 48 kHz; where the true peak is within a sample of the largest samples.
+fn true_peak(x: &[f64]) -> f64 {
+    let largest = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if largest <= 0.0 || largest.is_nan() || x.len() < 3 {
+        return largest;
+    }
+    let at = |t: f64| -> f64 {
+        let base = t.floor() as isize;
+        let mut acc = 0.0;
+        for n in base - PEAK_TAPS as isize + 1..=base + PEAK_TAPS as isize {
+            if n < 0 || n as usize >= x.len() {
+                continue;
+            }
+            let d = t - n as f64;
+            let half = PEAK_TAPS as f64;
+            if d.abs() >= half {
+                continue;
+            }
+            let sinc = if d == 0.0 {
+                1.0
+            } else {
+                (std::f64::consts::PI * d).sin() / (std::f64::consts::PI * d)
+            };
+            let w = 0.5 + 0.5 * (std::f64::consts::PI * d / half).cos();
+            acc += x[n as usize] * sinc * w;
+        }
+        acc
+    };
+    let mut peak = largest;
+    for i in 1..x.len() - 1 {
+        let v = x[i].abs();
+        if v >= 0.7 * largest && v >= x[i - 1].abs() && v >= x[i + 1].abs() {
+            for k in -7..=7 {
+                peak = peak.max(at(i as f64 + f64::from(k) / 8.0).abs());
+            }
+        }
+    }
+    peak
 }
 
 fn decay(x: &[f64], bin: usize) -> Vec<f64> {
@@ -770,6 +821,28 @@ mod tests {
 
     fn rate() -> SampleRate {
         SampleRate(8000)
+    }
+
+    #[test]
+    fn the_peak_between_samples_is_found() {
+        // A 900 Hz pulse at 4 kHz centred half-way between two samples: the largest
+        // sample is 2.4 dB under the pulse's peak (1), the true peak within 0.05 dB.
+        let fs = 4000.0;
+        let pulse = |t: f64| {
+            let d = t - 200.5 / fs;
+            (-(d * 1e3).powi(2) / 2.0).exp() * (2.0 * std::f64::consts::PI * 900.0 * d).cos()
+        };
+        let x: Vec<f64> = (0..400).map(|n| pulse(f64::from(n) / fs)).collect();
+        let largest = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let fine = 1.0;
+        assert!(20.0 * (fine / largest).log10() > 0.5, "{largest} vs {fine}");
+        let got = true_peak(&x);
+        assert!(
+            (20.0 * (got / fine).log10()).abs() < 0.05,
+            "{got} vs {fine} (largest sample {largest})"
+        );
+        assert_eq!(true_peak(&[0.0; 8]), 0.0);
+        assert_eq!(true_peak(&[1.0]), 1.0);
     }
 
     #[test]

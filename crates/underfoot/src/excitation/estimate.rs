@@ -53,9 +53,11 @@
 //!    off): `ρ` over 50·2^k events/s up to 6400 at `κ = 2`; `κ` in {1, 2, 4} at the best
 //!    `ρ`, half and twice it; the heel's share at twice and four times the measured
 //!    one when the crest factor is more than 1 dB off (the deconvolution smears an impact
-//!    over a few milliseconds). Then `c`, on four times as many steps: a step's duration
-//!    spreads widely and often in two clusters (a long tail holds a few percent of its
-//!    energy, or not), so the renders' duration is the mean of the middle half of their
+//!    over a few milliseconds), each at the best `ρ`, half and twice it (crest factors
+//!    are true peaks, [`crate::analysis::steps`], so that the 4 kHz renders and the
+//!    recordings compare as at 48 kHz). Then `c`, on four times as many steps: a step's
+//!    duration spreads widely and often in two clusters (a long tail holds a few percent
+//!    of its energy, or not), so the renders' duration is the mean of the middle half of their
 //!    log-durations, which moves smoothly with `c` where a median jumps, against the log of
 //!    the recordings' median; `c` is scaled by their ratio while that is more than 5% off
 //!    and the render comes closer, at most three times (`c` within 1/4 to 4). Last `ρ`
@@ -341,8 +343,10 @@ pub fn estimate(
     search(1.0, &shapes, &mut best)?;
     // The heel: the deconvolution smears an impact over a few milliseconds and may give
     // the train some of its energy, which shows as a crest factor too low. Twice and four
-    // times the measured share are tried (the train keeps at least a tenth), each kept
-    // only if the render comes closer.
+    // times the measured share are tried (the train keeps at least a tenth), each at the
+    // best density, half and twice it (a louder heel leaves fewer micro-events above the
+    // range, which a sparser train of louder impulses gives back), each kept only if the
+    // render comes closer.
     if heel > 0.0
         && heel < 1.0
         && let Some((score_now, d, shape, summary)) = best.clone()
@@ -351,11 +355,14 @@ pub fn estimate(
         let mut chosen = (score_now, heel);
         for m in [2.0, 4.0] {
             heel_share.set((heel * m).min(0.9));
-            let candidate = renderer.summary(&build(d, 1.0, shape)?)?;
-            let s = score(&candidate);
-            if s < chosen.0 {
-                chosen = (s, heel_share.get());
-                best = Some((s, d, shape, candidate));
+            for f in [0.5, 1.0, 2.0] {
+                let density = (d * f).min(densest);
+                let candidate = renderer.summary(&build(density, 1.0, shape)?)?;
+                let s = score(&candidate);
+                if s < chosen.0 {
+                    chosen = (s, heel_share.get());
+                    best = Some((s, density, shape, candidate));
+                }
             }
         }
         heel_share.set(chosen.1);

@@ -81,12 +81,12 @@ fn every_builtin_voice_matches_its_model_in_the_band() {
             .map(|(_, d)| d.abs())
             .fold(0.0, f64::max);
         println!("{}: lsd {lsd:.2} dB, worst {inner:.2} dB", model.name);
-        // Most are within 0.5 dB. Two fits lean on the aliases of broad modes near the
-        // 1 kHz Nyquist frequency more than the residue solve can make up for at
-        // 48 kHz (impulse invariance alone is 10 dB off for wood): glass 0.72 dB and
-        // wood 1.26 dB RMS (2.4 dB worst), a known gap of the rate change.
+        // Within 0.5 dB RMS: wood and glass, whose fits lean on the aliases of broad modes
+        // near the 1 kHz Nyquist frequency, were 1.26 and 0.72 dB (2.4 dB worst) before
+        // two modes above the band stood in for those aliases (0.23 and 0.02 dB now).
+        // Sand's worst (1.35 dB) is on a narrow notch, under the threshold for them.
         assert!(
-            lsd < 1.3 && inner < 2.5,
+            lsd < 0.5 && inner < 1.5,
             "{}: lsd {lsd:.2} dB, worst {inner:.2} dB",
             model.name
         );
