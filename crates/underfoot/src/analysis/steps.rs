@@ -66,6 +66,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::AnalysisError;
+use crate::fit::metrics::gain_aligned_level_distance_db;
 use crate::signal::{Sos, butterworth};
 use crate::units::{Band, Decibels, SampleRate, Seconds};
 
@@ -708,13 +709,8 @@ fn band_powers(x: &[f64], rate: SampleRate, centres: &[f64], fraction: f64) -> V
 
 /// Gain-aligned log-spectral distance between two band spectra (powers), dB.
 fn aligned_distance(a: &[f64], b: &[f64]) -> f64 {
-    let d: Vec<f64> = a
-        .iter()
-        .zip(b)
-        .map(|(x, y)| 10.0 * (x.max(1e-300) / y.max(1e-300)).log10())
-        .collect();
-    let mean = d.iter().sum::<f64>() / d.len().max(1) as f64;
-    (d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / d.len().max(1) as f64).sqrt()
+    let db = |p: &[f64]| -> Vec<f64> { p.iter().map(|v| 10.0 * v.max(1e-300).log10()).collect() };
+    gain_aligned_level_distance_db(&db(b), &db(a))
 }
 
 /// The mean over every pair of `steps` of the gain-aligned distance between their band

@@ -4,7 +4,10 @@
 //! longest decay limited (a fit can park a pole at the edge of stability; no ground rings
 //! for seconds, and an actuator on skin must not), its residues re-solved so that modes
 //! and post filter together have the model's response across the band, and one
-//! normalised gain per drive ([`PreparedMaterial::normalise_drives`]).
+//! normalised gain per drive ([`PreparedMaterial::normalise_drives`]). A [`Voice`]
+//! copies those coefficients (see [`mod@super::play`]). Beside them: the material's
+//! excitation at the audio rate ([`crate::excitation::Tables`]), its playback level
+//! ([`crate::material::level`]), and the size of its per-step perturbation.
 //!
 //! # Modes for the aliases
 //!
@@ -17,10 +20,7 @@
 //! and 2 times its top, bandwidths 0.6 and 1 times it), whose tails across the band are
 //! smooth as the images' are, are solved with the rest and kept if they bring the voice
 //! closer: `wood` 0.23 dB, `glass` 0.02 dB. They cost a voice two modes, nothing for a
-//! material whose modes leave room in their last group of lanes. A [`Voice`]
-//! copies those coefficients (see [`mod@super::play`]). Beside them: the material's
-//! excitation at the audio rate ([`crate::excitation::Tables`]), its playback level
-//! ([`crate::material::level`]), and the size of its per-step perturbation.
+//! material whose modes leave room in their last group of lanes.
 //!
 //! # The perturbation's size
 //!
@@ -63,6 +63,7 @@ use super::{
 };
 use crate::analysis::steps::{StepConfig, band_centres};
 use crate::excitation::{ExcitationModel, Tables};
+use crate::fit::metrics::gain_aligned_lsd_db;
 use crate::force::drive::DriveKind;
 use crate::material::MaterialModel;
 use crate::physical::{Ground, PhysicalModel};
@@ -216,14 +217,14 @@ impl PreparedMaterial {
             }
             Ok(())
         };
+        let grid = model.band_hz.log_grid(192);
+        let wanted: Vec<f64> = grid.iter().map(|f| target(*f).norm()).collect();
         let misfit = |modal: &ModalFilter| -> f64 {
-            let grid = model.band_hz.log_grid(192);
-            let d: Vec<f64> = grid
+            let got: Vec<f64> = grid
                 .iter()
-                .map(|f| 20.0 * (modal.response(rate.omega(*f)).norm() / target(*f).norm()).log10())
+                .map(|f| modal.response(rate.omega(*f)).norm())
                 .collect();
-            let mean = d.iter().sum::<f64>() / d.len() as f64;
-            (d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / d.len() as f64).sqrt()
+            gain_aligned_lsd_db(&wanted, &got)
         };
         solve(&mut modal)?;
         // Fixed poles cannot make up for a fit that leans on the aliases of broad modes
