@@ -67,6 +67,7 @@ use serde::{Deserialize, Serialize};
 
 use super::AnalysisError;
 use crate::fit::metrics::gain_aligned_level_distance_db;
+use crate::numeric::window::{Edges, centred_rms};
 use crate::signal::{Sos, butterworth};
 use crate::units::{Band, Decibels, SampleRate, Seconds};
 
@@ -288,7 +289,7 @@ pub(crate) fn zero_phase_in_silence(sos: &Sos, x: &[f64], rate: SampleRate) -> V
 /// documentation, *Onsets*).
 #[must_use]
 pub fn find_steps(signal: &[f64], rate: SampleRate, cfg: &StepConfig) -> Vec<usize> {
-    let env = rms_envelope(signal, rate.samples_in(Seconds(0.005)).max(1));
+    let env = centred_rms(signal, rate.samples_in(Seconds(0.005)), Edges::Zeros);
     let loudest = env.iter().copied().fold(0.0, f64::max);
     if loudest <= 0.0 {
         return Vec::new();
@@ -372,7 +373,7 @@ pub fn onsets_near(
     strikes: &[usize],
     cfg: &StepConfig,
 ) -> Vec<usize> {
-    let env = rms_envelope(signal, rate.samples_in(Seconds(0.005)).max(1));
+    let env = centred_rms(signal, rate.samples_in(Seconds(0.005)), Edges::Zeros);
     let loudest = env.iter().copied().fold(0.0, f64::max);
     let threshold = loudest * Decibels(-cfg.onset_range.0).to_amplitude();
     let before = rate.samples_in(cfg.before);
@@ -469,27 +470,6 @@ fn describe_onsets(
         .collect()
 }
 
-/// The centred moving RMS of `x` over `n` samples (`n` odd or even; zero outside `x`).
-fn rms_envelope(x: &[f64], n: usize) -> Vec<f64> {
-    // As numpy's convolve(x², ones(n)/n, "same"): output i sums x²[i - (n-1)/2 .. + n/2].
-    let mut prefix = Vec::with_capacity(x.len() + 1);
-    prefix.push(0.0);
-    let mut acc = 0.0;
-    for v in x {
-        acc += v * v;
-        prefix.push(acc);
-    }
-    let back = (n - 1) / 2;
-    let ahead = n - 1 - back;
-    (0..x.len())
-        .map(|i| {
-            let lo = i.saturating_sub(ahead);
-            let hi = (i + back + 1).min(x.len());
-            ((prefix[hi] - prefix[lo]).max(0.0) / n as f64).sqrt()
-        })
-        .collect()
-}
-
 fn energy_duration(x: &[f64], rate: SampleRate) -> Seconds {
     let total: f64 = x.iter().map(|v| v * v).sum();
     if total <= 0.0 {
@@ -514,7 +494,7 @@ fn energy_duration(x: &[f64], rate: SampleRate) -> Seconds {
 }
 
 fn micro_events(x: &[f64], rate: SampleRate, onset: usize, cfg: &StepConfig) -> Vec<MicroEvent> {
-    let env = rms_envelope(x, rate.samples_in(cfg.envelope).max(1));
+    let env = centred_rms(x, rate.samples_in(cfg.envelope), Edges::Zeros);
     let loudest = env.iter().copied().fold(0.0, f64::max);
     if loudest <= 0.0 {
         return Vec::new();

@@ -19,6 +19,7 @@ pub mod lstsq;
 pub mod roots;
 pub mod stats;
 pub mod trf;
+pub mod window;
 
 pub use bilinear::{bilinear, prewarp_constant};
 pub use dtft::dtft;

@@ -51,6 +51,7 @@
 //! any rate (it is meant for the conditioned signal at the 2 kHz analysis rate, but raw
 //! 44.1 kHz audio works too). Non-finite input, an empty signal or a 0 Hz rate give no onsets.
 
+use crate::numeric::window::{Edges, centred_rms};
 use crate::units::{Decibels, SampleRate, Seconds};
 
 /// Parameters of heel-strike detection; see the [module docs](self) for how each is used.
@@ -106,7 +107,7 @@ pub fn find_onsets(x: &[f64], rate: SampleRate, cfg: &OnsetConfig) -> Vec<usize>
     }
     let samples = |t: Seconds| rate.samples_in(t);
     let w = samples(cfg.envelope_window).max(1);
-    let env = centred_rms(x, w);
+    let env = centred_rms(x, w, Edges::Clipped);
     let peak_env = env.iter().copied().fold(0.0, f64::max);
     if peak_env <= 0.0 {
         return Vec::new();
@@ -155,27 +156,6 @@ fn up(db: Decibels) -> f64 {
 
 fn down(db: Decibels) -> f64 {
     Decibels(-db.0).to_amplitude()
-}
-
-/// Centred moving RMS over `w` samples, the window clipped at the ends.
-fn centred_rms(x: &[f64], w: usize) -> Vec<f64> {
-    let mut prefix = Vec::with_capacity(x.len() + 1);
-    prefix.push(0.0);
-    let mut acc = 0.0;
-    for v in x {
-        acc += v * v;
-        prefix.push(acc);
-    }
-    let before = w / 2;
-    let after = w - before;
-    (0..x.len())
-        .map(|n| {
-            let a = n.saturating_sub(before);
-            let b = (n + after).min(x.len());
-            // Differences of a rounded running sum can dip just below zero.
-            ((prefix[b] - prefix[a]).max(0.0) / (b - a) as f64).sqrt()
-        })
-        .collect()
 }
 
 /// Step 4 of the module docs: from a detection back to where the strike rises out of
