@@ -205,21 +205,25 @@ impl Channel {
         let n = out.len().min(self.drive_buf.len());
         let drive = &mut self.drive_buf[..n];
         let excitation = &mut self.excitation_buf[..n];
+        // The clock speeds first, then the whole block of excitation: the generator's
+        // state stays in registers through its own loop.
         for (x, e) in drive.iter_mut().zip(excitation.iter_mut()) {
             let total = self.conditioner.next_total();
-            let speed = (total - self.previous_total).abs() * self.speed_per_newton;
-            *e = self.excitation.next(&self.tables, speed);
-            *x = match self.drive {
-                DriveKind::Impulse => *e,
-                _ => self.drive.sample(
+            *e = (total - self.previous_total).abs() * self.speed_per_newton;
+            if self.drive != DriveKind::Impulse {
+                *x = self.drive.sample(
                     f64::from(total),
                     f64::from(self.previous_total),
                     self.rate_hz,
                     self.polarity,
                     self.weight,
-                ) as f32,
-            };
+                ) as f32;
+            }
             self.previous_total = total;
+        }
+        self.excitation.process_in_place(&self.tables, excitation);
+        if self.drive == DriveKind::Impulse {
+            drive.copy_from_slice(excitation);
         }
         if let Some(last) = drive.last() {
             // The impulse drive's steady state is rest, whatever the last sample held.

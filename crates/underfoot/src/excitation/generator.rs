@@ -232,8 +232,15 @@ impl Generator {
         self.next_active(tables, speed)
     }
 
-    /// [`next`](Self::next) while a step is playing.
+    /// [`next`](Self::next) while a step is playing: out of line, so that an idle
+    /// generator stays a load and a branch in the caller's loop.
     fn next_active(&mut self, tables: &Tables, speed: f32) -> f32 {
+        self.advance(tables, speed)
+    }
+
+    /// One sample of a playing step.
+    #[inline(always)]
+    fn advance(&mut self, tables: &Tables, speed: f32) -> f32 {
         let mut y = 0.0f32;
         if self.heel_due {
             self.heel_due = false;
@@ -261,15 +268,18 @@ impl Generator {
             let mut draws = 0;
             while due > 0.0 && draws < MAX_DRAWS {
                 let r = self.rng.next_u64();
-                if ((r >> 32) as f64) < due {
-                    let q = tables.quantiles[((r >> 24) & 0xFF) as usize];
-                    let a = tables.amplitude[bin] * q * self.gain;
-                    // The sign is bit 23 of the draw, put into `a`'s sign bit (all that
-                    // `-a` flips): a branch on it would be mispredicted every other event.
-                    let sign = ((r >> 23) as u32 & 1) << 31;
-                    y += f32::from_bits(a.to_bits() ^ sign);
-                    self.events += 1;
-                }
+                let hit = ((r >> 32) as f64) < due;
+                let q = tables.quantiles[((r >> 24) & 0xFF) as usize];
+                let a = tables.amplitude[bin] * q * self.gain;
+                // The sign is bit 23 of the draw, put into `a`'s sign bit (all that `-a`
+                // flips). The impulse is computed whether or not it is due and masked to +0
+                // when it is not: in a dense train a branch on either would be mispredicted
+                // at every other draw (and the compiler turns a select back into one). `y`
+                // is never -0, so adding +0 leaves its bits as they are.
+                let sign = ((r >> 23) as u32 & 1) << 31;
+                let keep = u32::from(hit).wrapping_neg();
+                y += f32::from_bits((a.to_bits() ^ sign) & keep);
+                self.events += u64::from(hit);
                 due -= TWO_32;
                 draws += 1;
             }
@@ -281,16 +291,27 @@ impl Generator {
     /// `out[n]` = the next sample at `speed[n]`, over the shorter of the two.
     pub fn process(&mut self, tables: &Tables, speed: &[f32], out: &mut [f32]) {
         let n = out.len().min(speed.len());
+        out[..n].copy_from_slice(&speed[..n]);
+        self.process_in_place(tables, &mut out[..n]);
+    }
+
+    /// As [`process`](Self::process) in place: `buf[n]` holds the clock speed on entry and
+    /// the sample on return.
+    pub fn process_in_place(&mut self, tables: &Tables, buf: &mut [f32]) {
+        // A local copy stays in registers through the loop; `self` behind a reference is
+        // loaded and stored at every sample.
+        let mut g = self.clone();
         let mut played = 0;
-        for (y, v) in out[..n].iter_mut().zip(speed) {
-            if !self.active {
+        for x in buf.iter_mut() {
+            if !g.active {
                 break;
             }
-            *y = self.next_active(tables, *v);
+            *x = g.advance(tables, *x);
             played += 1;
         }
+        *self = g;
         // Only a strike starts a step again: the rest of the block is silent.
-        out[played..n].fill(0.0);
+        buf[played..].fill(0.0);
     }
 }
 
