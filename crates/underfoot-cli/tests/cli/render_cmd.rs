@@ -116,3 +116,34 @@ fn render_of_a_bad_force_track_fails_and_keeps_the_old_wav() {
     assert!(assert_error(&o).contains("speed"));
     assert_eq!(fs::read(&out).unwrap(), b"previous render");
 }
+
+/// The ceiling holds in the WAV the CLI writes, measured in exact arithmetic: at -4 dB the
+/// nearest `f32` (0.63095737) is above 10^(-4/20) (0.630957344...), and a limiter held to it
+/// let 262 samples of this render through over the ceiling.
+#[test]
+fn no_written_sample_exceeds_the_ceiling_in_exact_arithmetic() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for db in ["-4", "-5", "-20", "-0.0001"] {
+        let out = dir.path().join(format!("c{db}.wav"));
+        let o = run(&[
+            "render",
+            "--material",
+            "gravel",
+            "--gait",
+            "steps=6",
+            "--gain-db",
+            "40",
+            &format!("--ceiling-db={db}"),
+            "--out",
+            s(&out),
+        ]);
+        assert_ok(&o);
+        let (_, y) = read_wav(&out);
+        let exact = 10f64.powf(db.parse::<f64>().unwrap() / 20.0);
+        let over = y.iter().filter(|v| f64::from(v.abs()) > exact).count();
+        let peak = y.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        assert_eq!(over, 0, "{db} dB: peak {peak} against {exact}");
+        // Limited hard, so the peak sits at the ceiling, not merely under it.
+        assert!(f64::from(peak) > exact * 0.999_999, "{db} dB: peak {peak}");
+    }
+}

@@ -68,6 +68,21 @@ pub const STEP_WINDOW: Seconds = Seconds(0.5);
 /// playback level keeps its nominal step under it (`material::level`).
 pub const DEFAULT_CEILING: Decibels = Decibels(-6.0);
 
+/// `ceiling` as the `f32` amplitude a limiter holds samples to: the largest `f32` not above
+/// the exact value. Rounded to the nearest `f32`, a ceiling such as -4 dB (0.630957344...)
+/// becomes 0.63095737, and a sample held to it is 2.8e-7 dB over what the user set; the
+/// README promises none ever is.
+#[must_use]
+pub fn ceiling_amplitude(ceiling: Decibels) -> f32 {
+    let exact = ceiling.to_amplitude();
+    let nearest = exact as f32;
+    if f64::from(nearest) > exact {
+        nearest.next_down()
+    } else {
+        nearest
+    }
+}
+
 /// A peak limiter with an absolute ceiling.
 ///
 /// The gain `g` follows `min(1, c / |x|)` down at once and recovers towards 1 with time
@@ -95,7 +110,7 @@ impl Limiter {
     #[must_use]
     pub fn new(ceiling: Decibels, release: Seconds, rate: SampleRate) -> Self {
         Self {
-            ceiling: ceiling.to_amplitude() as f32,
+            ceiling: ceiling_amplitude(ceiling),
             gain: 1.0,
             release: (1.0 - crate::math::exp(-1.0 / (release.0.max(1e-6) * rate.hz()))) as f32,
         }
@@ -275,6 +290,33 @@ impl Fader {
 mod tests {
     use super::*;
     use crate::signal::noise::SplitMix64;
+
+    #[test]
+    fn the_ceiling_is_never_exceeded_in_exact_arithmetic() {
+        // -4 dB is 0.630957344..., whose nearest f32 (0.63095737) is above it.
+        let rate = SampleRate(48_000);
+        let mut rounded_up = 0;
+        for k in 0..=4000 {
+            let db = Decibels(-40.0 + f64::from(k) * 0.01);
+            let ceilings = [db, Decibels(-4.0), Decibels(-5.0), Decibels(-0.0001)];
+            for ceiling in ceilings {
+                let exact = ceiling.to_amplitude();
+                rounded_up += usize::from(f64::from(exact as f32) > exact);
+                let mut lim = Limiter::new(ceiling, Seconds(0.05), rate);
+                let mut report = LimiterReport::default();
+                for x in [1e3f32, -1e3, 0.99, -0.99, exact as f32, -(exact as f32)] {
+                    let y = lim.tick(x, &mut report);
+                    assert!(
+                        f64::from(y.abs()) <= exact,
+                        "{} dB: {y} over {exact}",
+                        ceiling.0
+                    );
+                }
+            }
+        }
+        // The test exercises the rounding it guards against.
+        assert!(rounded_up > 1000, "{rounded_up}");
+    }
 
     #[test]
     fn limiter_never_exceeds_the_ceiling_and_blocks_non_finite() {

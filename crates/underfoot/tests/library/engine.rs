@@ -445,7 +445,7 @@ fn the_limiter_holds_the_ceiling_and_non_finite_input_is_rejected() {
     for chunk in out.chunks_mut(100) {
         eng.process(chunk, 1);
     }
-    let ceiling = underfoot::units::Decibels(-6.0).to_amplitude() as f32;
+    let ceiling = underfoot::safety::ceiling_amplitude(underfoot::units::Decibels(-6.0));
     assert!(out.iter().all(|v| v.is_finite() && v.abs() <= ceiling));
     let t = ctl.telemetry();
     assert!(t.limited > 0 && t.peak <= ceiling);
@@ -543,7 +543,7 @@ fn the_limiter_holds_against_a_pathological_filter() {
     for chunk in out.chunks_mut(64) {
         eng.process(chunk, 1);
     }
-    let ceiling = Decibels(-12.0).to_amplitude() as f32;
+    let ceiling = underfoot::safety::ceiling_amplitude(Decibels(-12.0));
     let peak = out.iter().fold(0.0f32, |m, v| m.max(v.abs()));
     assert!(out.iter().all(|v| v.is_finite()));
     assert!(
@@ -674,7 +674,7 @@ fn a_trim_only_lowers_the_output() {
     // -6 dB: once the 10 ms smoothing has settled (125 ms: 12.5 time constants), half
     // the amplitude.
     let trimmed = render_with(Some(-6.0));
-    let expected = underfoot::units::Decibels(-6.0).to_amplitude() as f32;
+    let expected = underfoot::safety::ceiling_amplitude(underfoot::units::Decibels(-6.0));
     for (a, b) in trimmed.iter().zip(&plain).skip(6000) {
         assert!(
             (a - b * expected).abs() <= 1e-6 + 1e-4 * b.abs(),

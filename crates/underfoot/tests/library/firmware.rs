@@ -362,7 +362,7 @@ fn exported_c_matches_rust_for_every_builtin_material() {
                 dir.path(),
                 &m.name,
                 &x,
-                ceiling.to_amplitude() as f32,
+                underfoot::safety::ceiling_amplitude(ceiling),
                 release,
             );
             // Rust, the same loops.

@@ -276,7 +276,7 @@ fn a_physical_mode_of_a_million_seconds_is_refused_on_load_and_capped_at_play() 
 #[test]
 fn integer_wav_never_passes_the_ceiling() {
     use underfoot::io::wav::{WavFormat, WavSink};
-    let ceiling = Decibels(-6.0).to_amplitude() as f32;
+    let ceiling = underfoot::safety::ceiling_amplitude(Decibels(-6.0));
     let dir = tempfile::tempdir().unwrap();
     // The engine's own loudest output, limited at the ceiling.
     let config = EngineConfig {

@@ -44,7 +44,7 @@ fn conversion_renders_large_buffers_in_whole_frame_chunks() {
 fn integer_conversion_clamps_and_silences_nan() {
     assert_eq!(to_device::<i16>(2.0), i16::MAX);
     // The -6 dB ceiling is 16422.9 codes: rounded it was 16423, one above.
-    let ceiling = crate::units::Decibels(-6.0).to_amplitude() as f32;
+    let ceiling = crate::safety::ceiling_amplitude(crate::units::Decibels(-6.0));
     let c16 = f64::from(ceiling) * 32768.0;
     assert!(f64::from(to_device::<i16>(ceiling)) <= c16);
     assert!(f64::from(to_device::<i16>(-ceiling)) >= -c16);
