@@ -324,3 +324,41 @@ fn an_uneven_device_says_where_the_boost_is_capped_and_flattens_when_allowed() {
     let text = fs::read_to_string(&eq).unwrap();
     assert!(text.contains("\"kept\": true"), "{text}");
 }
+
+/// A replayed measurement is an input like any other: naming it (or a symlink to it) as the
+/// output is refused, and the measurement stays as it was. Both commands replaced it.
+#[test]
+fn a_replayed_device_is_never_its_own_output() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let device = dir.path().join("x.json");
+    assert_ok(&run(&["calibrate", "sweep", "--out", s(&device)]));
+    let before = fs::read(&device).expect("read the measurement");
+    let link = dir.path().join("link.json");
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(&device, &link).expect("symlink");
+    #[cfg(not(unix))]
+    fs::copy(&device, &link).expect("copy");
+    for command in ["sweep", "equalize"] {
+        for out in [&device, &link] {
+            let o = run(&[
+                "calibrate",
+                command,
+                "--device",
+                s(&device),
+                "--out",
+                s(out),
+            ]);
+            let message = assert_error(&o);
+            assert!(
+                message.contains("which this command reads"),
+                "{command} --out {}: {message}",
+                out.display()
+            );
+            assert_eq!(
+                fs::read(&device).unwrap(),
+                before,
+                "{command} changed x.json"
+            );
+        }
+    }
+}

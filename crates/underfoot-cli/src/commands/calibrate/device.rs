@@ -2,7 +2,7 @@
 //! `--load`), a replayed measurement, or a sound card (`--device audio`, with the
 //! `audio` feature).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use clap::Args;
@@ -29,6 +29,16 @@ pub enum DeviceArg {
         output: Option<String>,
         input: Option<String>,
     },
+}
+
+impl DeviceArg {
+    /// The file this device reads, if it is a replayed measurement.
+    pub(super) fn input_file(&self) -> Option<&Path> {
+        match self {
+            Self::Measured(p) => Some(p),
+            Self::Simulated | Self::Audio { .. } => None,
+        }
+    }
 }
 
 pub(super) fn parse_device(s: &str) -> Result<DeviceArg, SpecError> {

@@ -1,7 +1,7 @@
 //! `underfoot calibrate equalize`: the device equalizer (the compensation paper's equations 4-5), tuned
 //! by successive sweeps, each through the weights of the passes before it.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
@@ -83,7 +83,7 @@ pub struct EqualizeArgs {
 /// Runs `underfoot calibrate equalize`.
 pub(super) fn run(args: &EqualizeArgs) -> anyhow::Result<()> {
     let s = &args.settings;
-    let inputs: Vec<&Path> = s.input_file().into_iter().collect();
+    let inputs = s.input_files(&args.device);
     let (out, plot_out) = check_outputs(&args.out, args.plot.as_deref(), &inputs)?;
     anyhow::ensure!(
         (1..=10).contains(&args.passes),

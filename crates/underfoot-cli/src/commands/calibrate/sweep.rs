@@ -80,12 +80,16 @@ impl SweepSettings {
 }
 
 impl SweepSettings {
-    /// The limb file of `--load`, if it is one.
-    pub(super) fn input_file(&self) -> Option<&Path> {
-        match &self.load {
-            Some(UserArg::File(p)) => Some(p),
+    /// Every file a sweep command reads with these settings and `device`: the limb file of
+    /// `--load` and a replayed measurement. One list for every command, so that none can
+    /// name one of them as its output (`--device x.json --out x.json` replaced the
+    /// measurement it was replaying).
+    pub(super) fn input_files<'a>(&'a self, device: &'a DeviceArg) -> Vec<&'a Path> {
+        let load = match &self.load {
+            Some(UserArg::File(p)) => Some(p.as_path()),
             _ => None,
-        }
+        };
+        load.into_iter().chain(device.input_file()).collect()
     }
 }
 
@@ -112,12 +116,8 @@ pub struct SweepArgs {
 /// Runs `underfoot calibrate sweep`.
 pub(super) fn run(args: &SweepArgs) -> anyhow::Result<()> {
     let s = &args.settings;
-    let inputs: Vec<&Path> = args
-        .eq
-        .as_deref()
-        .into_iter()
-        .chain(s.input_file())
-        .collect();
+    let mut inputs = s.input_files(&args.device);
+    inputs.extend(args.eq.as_deref());
     let (out, plot_out) = check_outputs(&args.out, args.plot.as_deref(), &inputs)?;
     let sweep = s.sweep()?;
     let (mut device, mut description) = s.device(&args.device)?;
