@@ -380,10 +380,12 @@ fn a_killed_live_recording_is_a_valid_wav_on_disk() {
         .stderr(Stdio::null())
         .spawn()
         .expect("spawn run");
-    // The old file stays until the session has started and written its first buffer
-    // (a loaded machine may take a while to get there); the kill comes 2.5 s later.
+    // The recording goes to a partial file beside the old one, which stays as it was;
+    // the kill comes 2.5 s after the partial file appears (a loaded machine may take a
+    // while to start the session).
+    let partial = dir.path().join(format!("live.partial-{}.wav", child.id()));
     let deadline = Instant::now() + Duration::from_secs(60);
-    while fs::read(&wav).is_ok_and(|b| b.starts_with(b"an earlier")) {
+    while !partial.exists() {
         assert!(Instant::now() < deadline, "the session never started");
         assert!(child.try_wait().expect("poll").is_none(), "run ended early");
         std::thread::sleep(Duration::from_millis(20));
@@ -397,7 +399,8 @@ fn a_killed_live_recording_is_a_valid_wav_on_disk() {
     child.kill().expect("SIGKILL");
     child.wait().expect("reaped");
     let ran = started.elapsed().as_secs_f64();
-    let reader = hound::WavReader::open(&wav).expect("a valid WAV after SIGKILL");
+    assert_eq!(fs::read(&wav).expect("old"), b"an earlier session");
+    let reader = hound::WavReader::open(&partial).expect("a valid WAV after SIGKILL");
     let spec = reader.spec();
     let seconds = f64::from(reader.duration()) / f64::from(spec.sample_rate);
     assert!(seconds >= 1.0, "{seconds:.2} s on disk after {ran:.2} s");
@@ -406,8 +409,46 @@ fn a_killed_live_recording_is_a_valid_wav_on_disk() {
         .map(|v| v.expect("sample"))
         .collect();
     assert_eq!(samples.len() as f64, seconds * f64::from(spec.sample_rate));
-    // Only the recording is left: no hidden temporary file.
-    assert_eq!(fs::read_dir(dir.path()).expect("dir").count(), 1);
+    // The old file and the recording, no hidden temporary file.
+    assert_eq!(fs::read_dir(dir.path()).expect("dir").count(), 2);
+}
+
+/// A live recording that fails (here a file-size limit, as a full disk) leaves the file
+/// that was there as it was, and says where the recording up to the failure is. It
+/// replaced the old file with the partial one.
+#[cfg(unix)]
+#[test]
+fn a_failed_live_recording_keeps_the_old_file() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let wav = dir.path().join("live.wav");
+    fs::write(&wav, b"an earlier session").expect("old file");
+    // 100 blocks of 512 bytes: 1.6 s of 8 kHz float; the write past it fails with EFBIG
+    // (the ignored SIGXFSZ is inherited through exec).
+    let script = format!(
+        "trap '' XFSZ; ulimit -f 100; exec '{}' run --material wood --input \
+         gait:steps=20,channels=1 --output 'wav:{}' --rate 8000 --gain-db -20",
+        bin().display(),
+        wav.display()
+    );
+    let o = Command::new("sh")
+        .args(["-c", &script])
+        .output()
+        .expect("run sh");
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{stderr}");
+    assert_eq!(fs::read(&wav).expect("old"), b"an earlier session");
+    assert!(
+        stderr.contains("the file that was there is kept"),
+        "{stderr}"
+    );
+    let partial = fs::read_dir(dir.path())
+        .expect("dir")
+        .map(|e| e.expect("entry").path())
+        .find(|p| p != &wav)
+        .expect("the partial recording");
+    assert!(stderr.contains(&*partial.to_string_lossy()), "{stderr}");
+    let reader = hound::WavReader::open(&partial).expect("a valid partial WAV");
+    assert!(reader.duration() >= 8000, "{} frames", reader.duration());
 }
 
 #[test]

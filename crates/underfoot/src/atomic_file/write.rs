@@ -62,6 +62,37 @@ impl OutputFile {
         Ok((tmp, f))
     }
 
+    /// Creates a new, empty file beside the target that is worth keeping if the writer
+    /// never finishes: `STEM.partial-PID.EXT` (`live.partial-4242.wav` for `live.wav`),
+    /// visible rather than hidden, because after a crash it holds the user's data. The
+    /// writer [`persist`](Self::persist)s it over the target when it is done; until then
+    /// the target is as it was. The pid keeps two writers of one target apart.
+    ///
+    /// # Errors
+    /// As [`create_temporary`](Self::create_temporary).
+    pub fn create_partial(&self) -> Result<(PathBuf, File), AtomicWriteError> {
+        let Target::File(target) = &self.target else {
+            return Err(refuse(
+                &self.given,
+                std::io::ErrorKind::InvalidInput,
+                "standard output cannot be written through a partial file".into(),
+            ));
+        };
+        let stem = target.file_stem().unwrap_or_default().to_string_lossy();
+        let pid = std::process::id();
+        let name = match target.extension() {
+            Some(ext) => format!("{stem}.partial-{pid}.{}", ext.to_string_lossy()),
+            None => format!("{stem}.partial-{pid}"),
+        };
+        let path = parent_dir(target).join(name);
+        let f = fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&path)
+            .map_err(io(&path, "creating the partial file"))?;
+        Ok((path, f))
+    }
+
     /// For a writer that insists on creating the file itself from a path (a plotting
     /// library): `write` writes the temporary file at the path it is given (same
     /// extension as the target), which then replaces the target as in

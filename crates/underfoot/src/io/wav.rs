@@ -14,12 +14,19 @@
 //!
 //! # Live recordings
 //!
-//! A session recorded by `run --output wav:` may last hours and end with a crash or a
-//! `SIGKILL`, so [`WavSink::live`] keeps the file valid on disk at every moment and at
-//! most [`LIVE_FLUSH_MAX`] behind. The temporary file replaces the target when the first
-//! block has been written (after every check of the session has passed and it has
-//! started: a session that fails to start leaves an existing file as it was); from
-//! then on the samples go into that same open file. At least once a second, from the
+//! A session recorded by `run --output wav:` may last hours and end with a crash, a
+//! full disk or a `SIGKILL`, so [`WavSink::live`] keeps the file valid on disk at every
+//! moment and at most [`LIVE_FLUSH_MAX`] behind, and never lets a session that fails
+//! replace the file that was there. It records into a *partial* file beside the target,
+//! `STEM.partial-PID.EXT` (`walk.partial-4242.wav` for `walk.wav`:
+//! [`OutputFile::create_partial`]), which replaces the target only when the session
+//! [finishes](WavSink::finish). What is left otherwise:
+//! - a write that fails (a full disk): the target as it was, and the partial file, valid
+//!   up to the last update, named in the error;
+//! - a crash or a kill: the same, without the message. The partial file is visible,
+//!   not hidden, because it is the user's data; no later run removes it.
+//!
+//! At least once a second, from the
 //! thread that writes the samples (never the audio thread), the buffered samples are
 //! written, *then* the RIFF and data sizes in the header are updated to count them, then
 //! the file is flushed ([`WavSink::sync`]). So between two updates the file holds more
@@ -113,7 +120,7 @@ pub struct WavSink {
     failed: bool,
     /// The temporary file has become `path` and must not be removed.
     persisted: bool,
-    /// A live recording: periodic updates on disk.
+    /// A live recording: periodic updates on disk, into a partial file worth keeping.
     live: Option<Live>,
 }
 
@@ -173,10 +180,10 @@ impl WavSink {
         Self::start(out, rate, channels, format, None)
     }
 
-    /// Starts a live recording (see the module docs, *Live recordings*): the file
-    /// replaces the target with the first block written and is brought up to date on
-    /// disk at least every `every` (at most [`LIVE_FLUSH_MAX`]) after that, so a
-    /// killed process leaves a valid WAV file that lacks at most that much audio.
+    /// Starts a live recording (see the module docs, *Live recordings*): a partial file
+    /// beside the target, brought up to date on disk at least every `every` (at most
+    /// [`LIVE_FLUSH_MAX`]), so a killed process leaves a valid WAV file that lacks at
+    /// most that much audio; it replaces the target when [finished](Self::finish).
     ///
     /// # Errors
     /// As [`create`](Self::create).
@@ -208,7 +215,12 @@ impl WavSink {
         if rate.0 == 0 {
             return Err(unsupported("a sample rate of 0 Hz"));
         }
-        let (temp, file) = out.create_temporary().map_err(|e| open_error(&path, &e))?;
+        let created = if live.is_some() {
+            out.create_partial()
+        } else {
+            out.create_temporary()
+        };
+        let (temp, file) = created.map_err(|e| open_error(&path, &e))?;
 
         let spec = hound::WavSpec {
             channels,
@@ -299,12 +311,14 @@ impl WavSink {
             };
             if let Err(e) = written {
                 self.failed = true;
-                return Err(io_error(&self.path, e));
+                return Err(self.kept(io_error(&self.path, e)));
             }
         }
         self.samples = total;
+        // The first block at once, so that the partial file is a valid WAV from the
+        // start; then at the recording's interval.
         if let Some(live) = self.live
-            && (!self.persisted || live.last.elapsed() >= live.every)
+            && (total == samples.len() as u64 || live.last.elapsed() >= live.every)
         {
             self.sync()?;
         }
@@ -312,8 +326,7 @@ impl WavSink {
     }
 
     /// Brings the file on disk up to date with everything written so far: a live
-    /// recording does this by itself, at least every [`LIVE_FLUSH_MAX`]. The first call
-    /// replaces the target (see the module docs, *Live recordings*).
+    /// recording does this by itself, at least every [`LIVE_FLUSH_MAX`].
     ///
     /// # Errors
     /// [`IoError::Io`] naming the file; the sink is spoiled.
@@ -325,28 +338,37 @@ impl WavSink {
         // the header never counts a byte that is not in the file yet.
         if let Err(e) = writer.flush() {
             self.failed = true;
-            return Err(io_error(&self.path, e));
-        }
-        if !self.persisted {
-            let result = File::options()
-                .write(true)
-                .open(&self.temp)
-                .map_err(|e| io_error(&self.path, e))
-                .and_then(|f| {
-                    self.out
-                        .persist_unsynced(&self.temp, &f)
-                        .map_err(|e| open_error(&self.path, &e))
-                });
-            if let Err(e) = result {
-                self.failed = true;
-                return Err(e);
-            }
-            self.persisted = true;
+            return Err(self.kept(io_error(&self.path, e)));
         }
         if let Some(live) = self.live.as_mut() {
             live.last = Instant::now();
         }
         Ok(())
+    }
+
+    /// The partial file a live recording leaves when it fails.
+    #[must_use]
+    pub fn partial_path(&self) -> Option<&Path> {
+        self.live.is_some().then_some(self.temp.as_path())
+    }
+
+    /// A live recording's failure, saying what is left: the old target, and the partial
+    /// file with the samples up to the last update.
+    fn kept(&self, e: IoError) -> IoError {
+        match (self.partial_path(), e) {
+            (Some(partial), IoError::Io { device, source }) => IoError::Io {
+                device,
+                source: std::io::Error::new(
+                    source.kind(),
+                    format!(
+                        "{source}; the file that was there is kept, and the recording up to \
+                         the last update is in {}",
+                        partial.display()
+                    ),
+                ),
+            },
+            (_, e) => e,
+        }
     }
 
     /// Completes the header, flushes the file to disk and renames it over `path`.
@@ -360,31 +382,24 @@ impl WavSink {
             return Err(io_error(&self.path, "the file is already finished"));
         };
         if self.failed {
-            return Err(io_error(
+            drop(writer);
+            return Err(self.kept(io_error(
                 &self.path,
                 "an earlier write failed; the old file is kept",
-            ));
+            )));
         }
-        writer.finalize().map_err(|e| io_error(&self.path, e))?;
-        // hound has flushed its buffer and closed the file; fsync through a new handle
-        // covers the same inode (already renamed, for a live recording that synced).
-        let on_disk = if self.persisted {
-            self.out.target().to_path_buf()
-        } else {
-            self.temp.clone()
-        };
+        if let Err(e) = writer.finalize() {
+            return Err(self.kept(io_error(&self.path, e)));
+        }
+        // hound has flushed its buffer and closed the file; fsync through a new handle.
         let file = File::options()
             .write(true)
-            .open(&on_disk)
+            .open(&self.temp)
             .map_err(|e| io_error(&self.path, e))?;
-        if self.persisted {
-            file.sync_all().map_err(|e| io_error(&self.path, e))?;
-        } else {
-            self.out
-                .persist(&self.temp, &file)
-                .map_err(|e| open_error(&self.path, &e))?;
-            self.persisted = true;
-        }
+        self.out
+            .persist(&self.temp, &file)
+            .map_err(|e| open_error(&self.path, &e))?;
+        self.persisted = true;
         Ok(WavSummary {
             frames: self.samples / u64::from(self.channels),
             peak: self.peak,
@@ -405,11 +420,12 @@ impl Drop for WavSink {
         // hound rewrites the header when its writer drops; that must happen before the
         // file is removed, or the removal would race the last write on some systems.
         drop(self.writer.take());
-        if !self.persisted {
+        // A live recording that holds samples keeps them in its partial file (hound's
+        // drop has just written the final sizes): it is the user's data.
+        let keep = self.live.is_some() && self.samples > 0;
+        if !self.persisted && !keep {
             let _ = fs::remove_file(&self.temp);
         }
-        // A live recording that already replaced its target keeps what it has: hound's
-        // drop has just written the final sizes.
     }
 }
 
@@ -601,34 +617,38 @@ mod tests {
             Duration::from_secs(3600),
         )
         .expect("live");
-        // Nothing written yet: the old file is still there.
-        assert_eq!(fs::read(&path).expect("old"), b"the previous session");
-        // The first block replaces it, as a valid file holding that block.
+        let partial = sink
+            .partial_path()
+            .expect("a live sink's partial")
+            .to_path_buf();
+        assert_eq!(
+            partial.file_name().unwrap().to_string_lossy(),
+            format!("live.partial-{}.wav", std::process::id())
+        );
+        // The first block is on disk at once, as a valid file holding that block.
         sink.write_interleaved(&[0.25; 2 * 100]).expect("write");
-        assert_eq!(read_back(&path).1.len(), 200);
+        assert_eq!(read_back(&partial).1.len(), 200);
         // Later blocks are on disk only from the next sync on, but the file stays valid
         // in between: its header counts what was synced.
         sink.write_interleaved(&[0.5; 2 * 5000]).expect("write");
-        assert_eq!(read_back(&path).1.len(), 200);
+        assert_eq!(read_back(&partial).1.len(), 200);
         sink.sync().expect("sync");
-        let (_, y) = read_back(&path);
+        let (_, y) = read_back(&partial);
         assert_eq!(y.len(), 2 * 5100);
         assert_eq!(y[2 * 5100 - 1], 0.5);
-        // A kill: no finish, no drop.
+        // A kill: no finish, no drop. The old file is as it was, the recording beside it.
         sink.write_interleaved(&[0.75; 2 * 10]).expect("write");
         std::mem::forget(sink);
-        assert_eq!(read_back(&path).1.len(), 2 * 5100);
-        assert_eq!(
-            fs::read_dir(dir.path()).expect("dir").count(),
-            1,
-            "a temporary is left"
-        );
+        assert_eq!(read_back(&partial).1.len(), 2 * 5100);
+        assert_eq!(fs::read(&path).expect("old"), b"the previous session");
+        assert_eq!(fs::read_dir(dir.path()).expect("dir").count(), 2);
     }
 
     #[test]
     fn a_live_recording_syncs_by_itself_and_finishes_whole() {
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("live.wav");
+        fs::write(&path, b"the previous session").expect("old file");
         let out = OutputFile::check(&path, &[]).expect("check");
         let mut sink = WavSink::live(
             out,
@@ -638,18 +658,31 @@ mod tests {
             Duration::from_millis(10),
         )
         .expect("live");
+        let partial = sink.partial_path().expect("partial").to_path_buf();
         sink.write_interleaved(&[0.5; 10]).expect("write");
         std::thread::sleep(Duration::from_millis(20));
         sink.write_interleaved(&[0.5; 30]).expect("write");
         assert_eq!(
-            read_back(&path).1.len(),
+            read_back(&partial).1.len(),
             40,
             "not synced after the interval"
         );
+        assert_eq!(fs::read(&path).expect("old"), b"the previous session");
         sink.write_interleaved(&[0.5; 7]).expect("write");
         assert_eq!(sink.finish().expect("finish").frames, 47);
         assert_eq!(read_back(&path).1.len(), 47);
         assert_eq!(fs::read_dir(dir.path()).expect("dir").count(), 1);
+    }
+
+    #[test]
+    fn a_live_recording_dropped_before_its_first_block_leaves_nothing() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("live.wav");
+        let out = OutputFile::check(&path, &[]).expect("check");
+        let sink = WavSink::live(out, SampleRate(8000), 1, WavFormat::Int16, LIVE_FLUSH_MAX)
+            .expect("live");
+        drop(sink);
+        assert_eq!(fs::read_dir(dir.path()).expect("dir").count(), 0);
     }
 
     #[cfg(unix)]
