@@ -55,6 +55,17 @@
 //! starts again with a new file. Links to one file share one lock because the lock sits
 //! next to the resolved target. Only cooperating processes (this crate) are kept out; an
 //! editor is not.
+//!
+//! # Leftovers
+//!
+//! A writer killed between creating its temporary file and renaming it (`SIGKILL`, a power
+//! cut) leaves `.tmp-PID-N.NAME` beside the target, and a killed editor its `.NAME.lock`.
+//! The names say whose they are, so the next [`OutputFile::check`] of the same target
+//! removes them: a temporary file whose process is gone (looked up in `/proc`; where
+//! there is none, nothing is removed), and a lock file it can lock at once (no one holds
+//! it), removed under that lock as a holder removes it. A live recording's partial file
+//! (`STEM.partial-PID.EXT`, [`OutputFile::create_partial`]) holds the user's data and is
+//! never removed.
 
 use std::fs::{self, File};
 use std::io::Write;
@@ -63,6 +74,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 mod lock;
 mod policy;
+mod stale;
 mod write;
 
 pub use lock::EditLock;
@@ -173,6 +185,7 @@ impl OutputFile {
         }
         check_kind(path, &target)?;
         check_not_input(path, &target, inputs)?;
+        stale::remove_stale(&target);
         Ok(Self {
             given: path.to_path_buf(),
             target: Target::File(target),

@@ -210,3 +210,43 @@ fn the_lock_is_exclusive_and_outlives_renames() {
     assert_eq!(count.load(Ordering::SeqCst), 160);
     assert!(!lock_file.exists());
 }
+
+/// What killed writers left beside a target goes at its next check: temporary files of
+/// processes that are gone and a lock no one holds. A live process's temporary file, a
+/// held lock, another target's leftovers and a partial recording stay.
+#[cfg(target_os = "linux")]
+#[test]
+fn the_next_check_removes_what_killed_writers_left() {
+    let dir = tempfile::tempdir().unwrap();
+    let target = dir.path().join("lib.json");
+    // A pid that was alive and is gone: a child that has been reaped.
+    let mut child = std::process::Command::new("true").spawn().unwrap();
+    let dead = child.id();
+    child.wait().unwrap();
+    let own = std::process::id();
+    let name = |s: String| dir.path().join(s);
+    let stale = name(format!(".tmp-{dead}-3.lib.json"));
+    let lock = name(".lib.json.lock".into());
+    let kept = [
+        name(format!(".tmp-{own}-0.lib.json")),
+        name(format!(".tmp-{dead}-3.other.json")),
+        name(format!("lib.partial-{dead}.json")),
+        name(format!(".tmp-{dead}-x.lib.json")),
+    ];
+    for p in kept.iter().chain([&stale, &lock]) {
+        fs::write(p, b"left").unwrap();
+    }
+    OutputFile::check(&target, &[]).unwrap();
+    assert!(!stale.exists(), "a dead writer's temporary file stays");
+    assert!(!lock.exists(), "an unheld lock stays");
+    for p in &kept {
+        assert!(p.exists(), "{} was removed", p.display());
+    }
+
+    // A held lock stays.
+    let out = OutputFile::check(&target, &[]).unwrap();
+    let held = out.lock().unwrap();
+    OutputFile::check(&target, &[]).unwrap();
+    assert!(lock.exists(), "a held lock was removed");
+    drop(held);
+}
