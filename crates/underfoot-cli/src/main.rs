@@ -14,7 +14,7 @@ mod steps;
 
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 /// Learn how the ground vibrates underfoot, from recordings of footsteps.
 #[derive(Debug, Parser)]
@@ -51,8 +51,22 @@ enum Command {
     Demo(commands::demo::DemoArgs),
 }
 
+/// The command line, every command of it taking negative numbers as values: `--tail -1`
+/// is then refused for its value (with the range the flag takes), not as an unknown
+/// argument `-1`, and `--gain-db -20` needs no `=`. No flag of underfoot is a number, so
+/// a leading `-` and a digit can only be a value.
+fn command_line() -> clap::Command {
+    fn negatives(c: clap::Command) -> clap::Command {
+        c.allow_negative_numbers(true).mut_subcommands(negatives)
+    }
+    negatives(Cli::command())
+}
+
 fn main() -> ExitCode {
-    let cli = match Cli::try_parse() {
+    let parsed = command_line()
+        .try_get_matches()
+        .and_then(|m| Cli::from_arg_matches(&m));
+    let cli = match parsed {
         Ok(cli) => cli,
         // --help and --version: printed to stdout, status 0.
         Err(e) if !e.use_stderr() => e.exit(),
@@ -77,8 +91,10 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            // `{:#}` prints the whole context chain on one line: "what we did: why it failed".
-            eprintln!("underfoot: error: {}", message::shorten(&format!("{e:#}")));
+            eprintln!(
+                "underfoot: error: {}",
+                message::shorten(&message::chain(&e))
+            );
             ExitCode::FAILURE
         }
     }

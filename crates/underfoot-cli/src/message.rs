@@ -7,6 +7,26 @@ use std::borrow::Cow;
 /// message echoes in full.
 pub const MAX_ECHOED: usize = 160;
 
+/// An error and its causes on one line, "what we did: why it failed", each cause said
+/// once: many of the library's errors already end with their source (`"{path}: {source}"`,
+/// as a person reading one error alone needs), and anyhow's `{:#}` then repeated it
+/// ("No space left on device (os error 28): No space left on device (os error 28)"). A
+/// cause whose text the line already holds is left out.
+pub fn chain(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for link in e.chain() {
+        let text = link.to_string();
+        if text.is_empty() || out.contains(&text) {
+            continue;
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(&text);
+    }
+    out
+}
+
 /// `message` with every word longer than [`MAX_ECHOED`] characters cut to its start and
 /// end, saying how long it was: `aaaa…aaaa (100000 characters)`. Shorter words, and the
 /// message's layout (newlines, indentation), are kept as they were.
@@ -46,6 +66,38 @@ pub fn shorten(message: &str) -> Cow<'_, str> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_cause_already_said_is_not_repeated() {
+        // As the library's errors are: the source in the message and as the source.
+        #[derive(Debug)]
+        struct Write {
+            path: String,
+            source: std::io::Error,
+        }
+        impl std::fmt::Display for Write {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                write!(f, "{}: {}", self.path, self.source)
+            }
+        }
+        impl std::error::Error for Write {
+            fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+                Some(&self.source)
+            }
+        }
+        let disk = std::io::Error::from_raw_os_error(28);
+        let said = disk.to_string();
+        let e = anyhow::Error::new(Write {
+            path: "x.wav".into(),
+            source: disk,
+        })
+        .context("rendering");
+        let line = chain(&e);
+        assert_eq!(line, format!("rendering: x.wav: {said}"));
+        // A cause the line does not hold yet is kept.
+        let e = anyhow::anyhow!("the cause").context("what we did");
+        assert_eq!(chain(&e), "what we did: the cause");
+    }
 
     #[test]
     fn long_words_are_cut_and_the_rest_kept() {

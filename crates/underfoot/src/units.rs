@@ -213,7 +213,27 @@ impl From<[f64; 2]> for Band {
 
 impl fmt::Display for Band {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}-{} Hz", self.lo.0, self.hi.0)
+        write!(
+            f,
+            "{}-{} Hz",
+            Significant(self.lo.0),
+            Significant(self.hi.0)
+        )
+    }
+}
+
+/// A number to 12 significant digits, then as short as it reads back: a derived edge
+/// such as `0.2 * 1.5` prints `0.3`, not `0.30000000000000004`, and a typed one as typed.
+struct Significant(f64);
+
+impl fmt::Display for Significant {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        #[cfg(feature = "std")]
+        let rounded: f64 = format!("{:.11e}", self.0).parse().unwrap_or(self.0);
+        // Without an allocator (firmware), as it is.
+        #[cfg(not(feature = "std"))]
+        let rounded = self.0;
+        write!(f, "{rounded}")
     }
 }
 
@@ -303,6 +323,17 @@ pub(crate) fn clipped(s: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[cfg(feature = "std")]
+    #[test]
+    fn a_band_prints_its_edges_without_float_noise() {
+        assert_eq!(Band::new(0.1, 0.2 * 1.5).to_string(), "0.1-0.3 Hz");
+        assert_eq!(Band::new(20.0, 900.0).to_string(), "20-900 Hz");
+        assert_eq!(
+            Band::new(12.345_678, 1e-5).to_string(),
+            "12.345678-0.00001 Hz"
+        );
+    }
 
     #[test]
     fn log_grid_spans_band_evenly_in_log() {

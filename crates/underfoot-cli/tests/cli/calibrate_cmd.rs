@@ -362,3 +362,41 @@ fn a_replayed_device_is_never_its_own_output() {
         }
     }
 }
+
+/// `--bins` states the range it enforces, the equalizer's own (it named `taps` and
+/// 1-65536, and refused 2^20, which the equalizer takes).
+#[test]
+fn bins_are_refused_with_the_range_the_equalizer_takes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("eq.json");
+    for bad in ["0", "100", "2097152"] {
+        let o = run(&[
+            "calibrate",
+            "equalize",
+            "--device",
+            "simulated",
+            "--bins",
+            bad,
+            "--out",
+            s(&out),
+        ]);
+        assert_eq!(o.status.code(), Some(2), "--bins {bad}");
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            e.contains(&format!(
+                "--bins \"{bad}\": expected a power of two from 16 to 1048576"
+            )),
+            "{e}"
+        );
+    }
+    assert_ok(&run(&[
+        "calibrate",
+        "equalize",
+        "--device",
+        "simulated",
+        "--bins",
+        "1048576",
+        "--out",
+        s(&out),
+    ]));
+}

@@ -441,6 +441,8 @@ fn a_failed_live_recording_keeps_the_old_file() {
         stderr.contains("the file that was there is kept"),
         "{stderr}"
     );
+    // The system's reason once (it was printed twice, as the error and as its cause).
+    assert_eq!(stderr.matches("(os error").count(), 1, "{stderr}");
     let partial = fs::read_dir(dir.path())
         .expect("dir")
         .map(|e| e.expect("entry").path())

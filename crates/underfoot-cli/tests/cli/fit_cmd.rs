@@ -163,8 +163,20 @@ fn fit_of_each_bad_recording_kind_fails_clearly_and_keeps_library() {
     fs::remove_file(p("whole.wav")).expect("rm");
     fs::write(p("garbage.ogg"), b"OggS\x00\x02 definitely not vorbis").expect("write");
     fs::write(p("nan.csv"), "t,accel\n0,0.1\n1,nan\n2,0.3\n").expect("write");
+    // Finite, but its energy is not: it was "-inf dB above its noise, inf dB short".
+    let huge: String = (0..2000)
+        .map(|i| {
+            let v = if i == 900 {
+                1e308
+            } else {
+                f64::from(i % 7) * 0.1
+            };
+            format!("{i},{v:e}\n")
+        })
+        .collect();
+    fs::write(p("huge.csv"), format!("t,accel\n{huge}")).expect("write");
 
-    let cases: [(&str, &[&str], &str); 8] = [
+    let cases: [(&str, &[&str], &str); 9] = [
         ("empty.wav", &[], "corrupt"),
         ("header-only.wav", &[], "no samples"),
         ("silent.wav", &[], "silent"),
@@ -176,6 +188,11 @@ fn fit_of_each_bad_recording_kind_fails_clearly_and_keeps_library() {
             "nan.csv",
             &["--csv-column", "accel", "--csv-rate", "1000"],
             "not a finite number",
+        ),
+        (
+            "huge.csv",
+            &["--csv-column", "accel", "--csv-rate", "1000"],
+            "sample 900 is 1e308, beyond",
         ),
     ];
     for (name, extra, fault) in cases {
@@ -214,6 +231,22 @@ fn fit_with_band_beyond_rate_fails_and_keeps_library() {
     ]);
     let e = assert_error(&o);
     assert!(e.contains("does not fit"), "{e}");
+    assert_eq!(fs::read(&lib).expect("read"), before);
+
+    // The lowest band the parser allows designs its conditioning filter too (it was "band
+    // 0.05-0.30000000000000004 Hz does not fit"): what fails is the recording, said so.
+    let o = run(&[
+        "fit",
+        "--material",
+        "x",
+        "--out",
+        s(&lib),
+        "--band",
+        "0.1:0.2",
+        s(&wav),
+    ]);
+    let e = assert_error(&o);
+    assert!(!e.contains("does not fit") && !e.contains("0000000"), "{e}");
     assert_eq!(fs::read(&lib).expect("read"), before);
 }
 

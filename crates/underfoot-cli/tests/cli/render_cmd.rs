@@ -147,3 +147,40 @@ fn no_written_sample_exceeds_the_ceiling_in_exact_arithmetic() {
         assert!(f64::from(peak) > exact * 0.999_999, "{db} dB: peak {peak}");
     }
 }
+
+/// A negative number is a value, refused for what it is (it was "unexpected argument
+/// '-1'"), and a negative gain needs no `=`.
+#[test]
+fn a_negative_number_is_read_as_a_value() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("t.wav");
+    let o = run(&[
+        "render",
+        "--material",
+        "hard",
+        "--gait",
+        "steps=2",
+        "--tail",
+        "-1",
+        "--out",
+        s(&out),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("tail \"-1\": expected seconds from 0 to 60"),
+        "{e}"
+    );
+    assert!(!e.contains("unexpected argument"), "{e}");
+    assert_ok(&run(&[
+        "render",
+        "--material",
+        "hard",
+        "--gait",
+        "steps=2",
+        "--gain-db",
+        "-20",
+        "--out",
+        s(&out),
+    ]));
+}

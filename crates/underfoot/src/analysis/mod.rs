@@ -280,7 +280,9 @@ impl AnalysisConfig {
 
     /// The zero-phase trend filter of step 3.
     fn trend_filter(&self) -> Result<Sos, SignalError> {
-        let lo = Hz(self.band.lo.0 / 2.0);
+        // An octave below the band, but never below the lowest edge a band may have: a
+        // band from 0.1 Hz passes the checks, and its trend filter must design too.
+        let lo = Hz((self.band.lo.0 / 2.0).max(Band::MIN_EDGE));
         let hi = self.band.hi.0 * 1.5;
         if hi < 0.9 * self.rate.nyquist().0 {
             butterworth::bandpass(self.bandpass_order, Band { lo, hi: Hz(hi) }, self.rate)

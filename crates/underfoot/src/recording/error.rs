@@ -75,6 +75,23 @@ pub enum RecordingError {
         value: f64,
     },
 
+    /// A sample beyond [`MAX_SAMPLE`](super::MAX_SAMPLE) in magnitude: no sensor reads
+    /// that, and its energy would overflow the analysis.
+    #[error(
+        "{}: sample {index} is {value:e}, beyond the ±{:e} a recording may hold \
+         (raw counts or a wrong column?)",
+        file.display(),
+        super::MAX_SAMPLE
+    )]
+    OutOfRange {
+        /// The file.
+        file: PathBuf,
+        /// 0-based index of the first offending (mono) sample; for a CSV, of the data row.
+        index: usize,
+        /// The offending value.
+        value: f64,
+    },
+
     /// Not a recognisable audio format, an undecodable packet, or truncated data.
     #[error("{}: corrupt or unsupported audio: {reason}", file.display())]
     Corrupt {
@@ -126,6 +143,7 @@ impl RecordingError {
             | Self::TooShort { file, .. }
             | Self::Silent { file, .. }
             | Self::NonFinite { file, .. }
+            | Self::OutOfRange { file, .. }
             | Self::Corrupt { file, .. }
             | Self::InvalidRate { file, .. }
             | Self::Csv { file, .. }

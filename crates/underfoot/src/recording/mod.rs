@@ -19,7 +19,10 @@
 //! Every recording, whatever its format, must then pass, in this order:
 //!
 //! 1. at least one sample ([`RecordingError::Empty`]);
-//! 2. every sample finite ([`RecordingError::NonFinite`], with the first bad index);
+//! 2. every sample finite ([`RecordingError::NonFinite`], with the first bad index) and
+//!    within [`MAX_SAMPLE`] ([`RecordingError::OutOfRange`]): a CSV sample of `1e308` is
+//!    finite, but its square is not, and the strike analysis would then report a strike
+//!    "-inf dB above its noise";
 //! 3. at least [`MIN_DURATION`] long ([`RecordingError::TooShort`]): shorter than a
 //!    strike's analysis window is useless and usually a mistake;
 //! 4. not silent ([`RecordingError::Silent`]): some sample differs from the first by more
@@ -165,6 +168,12 @@ fn decode_and_check(
     })
 }
 
+/// The largest sample magnitude a recording may hold: far above any sensor's full scale
+/// in its own units (audio is ±1, an accelerometer a few thousand m/s², a 24-bit ADC's raw
+/// counts 8.4e6), and far below where squares summed over the longest recording overflow
+/// (`1e24` × 8.6e7 samples).
+pub const MAX_SAMPLE: f64 = 1e12;
+
 /// The checks every recording must pass; see the [module docs](self#checks).
 fn check(file: &Path, rate: SampleRate, x: &[f64]) -> Result<(), RecordingError> {
     let file = || file.to_path_buf();
@@ -173,6 +182,13 @@ fn check(file: &Path, rate: SampleRate, x: &[f64]) -> Result<(), RecordingError>
     };
     if let Some((index, &value)) = x.iter().enumerate().find(|(_, v)| !v.is_finite()) {
         return Err(RecordingError::NonFinite {
+            file: file(),
+            index,
+            value,
+        });
+    }
+    if let Some((index, &value)) = x.iter().enumerate().find(|(_, v)| v.abs() > MAX_SAMPLE) {
+        return Err(RecordingError::OutOfRange {
             file: file(),
             index,
             value,
@@ -298,6 +314,21 @@ mod tests {
             check(f, r, &x[..49]),
             Err(RecordingError::TooShort { samples: 49, .. })
         ));
+    }
+
+    #[test]
+    fn a_sample_too_large_to_analyse_is_refused_with_its_value() {
+        let f = Path::new("x.csv");
+        let mut x: Vec<f64> = (0..1000).map(|i| f64::from(i % 7) * 0.1).collect();
+        x[17] = 1e308;
+        let e = check(f, SampleRate(1000), &x).unwrap_err();
+        assert!(
+            matches!(e, RecordingError::OutOfRange { index: 17, value, .. } if value == 1e308),
+            "{e:?}"
+        );
+        assert!(e.to_string().contains("sample 17 is 1e308"), "{e}");
+        x[17] = -MAX_SAMPLE;
+        assert!(check(f, SampleRate(1000), &x).is_ok());
     }
 
     #[test]

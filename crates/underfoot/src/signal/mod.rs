@@ -33,7 +33,11 @@ pub use sos::{Biquad, Sos};
 #[non_exhaustive]
 pub enum SignalError {
     /// A filter band does not fit the sample rate.
-    #[error("band {band} does not fit sample rate {rate} (need 0 < lo < hi < Nyquist)")]
+    #[error(
+        "band {band} does not fit sample rate {rate} (need {} Hz <= lo < hi < {})",
+        crate::units::Band::MIN_EDGE,
+        rate.nyquist()
+    )]
     BandOutOfRange {
         /// The band asked for.
         band: crate::units::Band,

@@ -29,6 +29,19 @@ fn parse_taps(s: &str) -> Result<usize, SpecError> {
     spec::parse_count(s, "taps", 1, 1 << 16)
 }
 
+/// `--bins`: the range the equalizer takes, stated as it is enforced.
+fn parse_bins(s: &str) -> Result<usize, SpecError> {
+    use underfoot::compensation::equalizer::weights::{MAX_BINS, MIN_BINS, bins_are_valid};
+    match s.trim().parse::<usize>() {
+        Ok(n) if bins_are_valid(n) => Ok(n),
+        _ => Err(SpecError::Invalid {
+            what: "--bins",
+            input: s.to_string(),
+            reason: format!("expected a power of two from {MIN_BINS} to {MAX_BINS} (2^20)"),
+        }),
+    }
+}
+
 /// `--taps`: a length, or sized from the band and the weights.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Taps {
@@ -65,7 +78,7 @@ pub struct EqualizeArgs {
     #[arg(long, default_value = "auto", value_name = "N|auto", value_parser = parse_taps_arg)]
     pub taps: Taps,
     /// Size N of the uniform bank that carries the weights (bins fs/N apart).
-    #[arg(long, default_value_t = 4096, value_name = "N", value_parser = parse_taps)]
+    #[arg(long, default_value_t = 4096, value_name = "N", value_parser = parse_bins)]
     pub bins: usize,
     /// Largest boost of any frequency, in dB.
     #[arg(long = "max-boost-db", default_value_t = 12.0, value_name = "DB")]

@@ -91,7 +91,7 @@ impl EqualizerConfig {
         if !self.band.fits(rate) {
             return bad("band.hi", self.band.hi.0, "0 < lo < hi < Nyquist");
         }
-        if self.bins < 16 || !self.bins.is_power_of_two() || self.bins > 1 << 20 {
+        if !bins_are_valid(self.bins) {
             return bad("bins", self.bins as f64, "a power of two from 16 to 2^20");
         }
         if !(self.step > 0.0 && self.step <= 1.0) {
@@ -288,4 +288,17 @@ pub(super) fn deviation(centred: &[f64]) -> (Decibels, Decibels) {
     let rms = (centred.iter().map(|a| a * a).sum::<f64>() / n).sqrt();
     let peak = centred.iter().fold(0.0f64, |m, a| m.max(a.abs()));
     (Decibels(rms), Decibels(peak))
+}
+
+/// The fewest bins of the uniform bank ([`EqualizerConfig::bins`]).
+pub const MIN_BINS: usize = 16;
+
+/// The most bins of the uniform bank: 2^20, 22 s of a 48 kHz frame.
+pub const MAX_BINS: usize = 1 << 20;
+
+/// Whether `bins` is a bank size the equalizer takes: a power of two from [`MIN_BINS`]
+/// to [`MAX_BINS`] (the FFT of the bank is radix-2).
+#[must_use]
+pub fn bins_are_valid(bins: usize) -> bool {
+    (MIN_BINS..=MAX_BINS).contains(&bins) && bins.is_power_of_two()
 }

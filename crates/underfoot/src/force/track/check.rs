@@ -2,7 +2,7 @@
 //! in memory: the header's channels and sensors, and each row against them and the row
 //! before (see the parent module, *File format*).
 
-use super::error::TrackError;
+use super::error::{NOT_FINITE, TrackError};
 use super::{ChannelSensors, ForceRow, ForceTrack, LONE_CHANNEL, TIME_COLUMN};
 use crate::force::{MAX_SENSORS, SensorReading};
 use crate::limits::MAX_TRACK_GAP;
@@ -218,6 +218,7 @@ pub(super) fn check_row(
         line,
         column,
         text,
+        reason: NOT_FINITE,
     };
     let time = row.time.0;
     if !time.is_finite() {

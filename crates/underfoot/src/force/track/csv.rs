@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::check::{channels_from_header, check_row, column_names, inconsistent};
-use super::error::TrackError;
+use super::error::{BEYOND_F32, NOT_FINITE, TrackError};
 use super::{ForceRow, ForceTrack, TIME_COLUMN};
 use crate::atomic_file::OutputFile;
 use crate::document::FileError;
@@ -77,19 +77,26 @@ impl ForceTrack {
                     found: record.len(),
                 });
             }
-            let bad_value = |field: usize| TrackError::BadValue {
+            let bad_value = |field: usize, reason| TrackError::BadValue {
                 origin: origin.to_owned(),
                 line,
                 column: header[field].to_owned(),
                 text: record[field].to_owned(),
+                reason,
             };
-            let time: f64 = record[0].parse().map_err(|_| bad_value(0))?;
+            let time: f64 = record[0].parse().map_err(|_| bad_value(0, NOT_FINITE))?;
             let mut field = 1;
             let mut readings = Vec::with_capacity(channels.len());
             for channel in &channels {
                 let n = channel.sensors.len();
                 for value in &mut values[..n] {
-                    *value = record[field].parse().map_err(|_| bad_value(field))?;
+                    let text = &record[field];
+                    *value = text.parse().map_err(|_| bad_value(field, NOT_FINITE))?;
+                    // Checked here, where the text is at hand: `1e300` overflows `f32` to
+                    // infinity, which the row check would report as "inf".
+                    if value.is_infinite() && text.parse::<f64>().is_ok_and(f64::is_finite) {
+                        return Err(bad_value(field, BEYOND_F32));
+                    }
                     field += 1;
                 }
                 // The header allows 1..=MAX_SENSORS sensors, so this always succeeds.

@@ -6,6 +6,13 @@ use crate::document::csv::CsvError;
 use crate::force::MAX_SENSORS;
 use crate::limits::MAX_TRACK_GAP;
 
+/// [`TrackError::BadValue`]'s reason for text that is no number, or infinite or NaN.
+pub const NOT_FINITE: &str = "is not a finite number";
+
+/// [`TrackError::BadValue`]'s reason for a number a force reading (`f32`) cannot hold.
+pub const BEYOND_F32: &str =
+    "is beyond the largest force a reading holds (3.4e38); is the column in newtons?";
+
 /// What is wrong with a force track file or track.
 ///
 /// Every variant names where the track came from (`origin`: the file path, or the
@@ -116,8 +123,8 @@ pub enum TrackError {
         /// The row's number of fields.
         found: usize,
     },
-    /// A field that is not a number, or is infinite or NaN.
-    #[error("{origin}: line {line}: column {column}: {text:?} is not a finite number")]
+    /// A field that is not a number, is infinite or NaN, or is beyond what a reading holds.
+    #[error("{origin}: line {line}: column {column}: {text:?} {reason}")]
     BadValue {
         /// Where the text came from.
         origin: String,
@@ -127,6 +134,8 @@ pub enum TrackError {
         column: String,
         /// The field as written.
         text: String,
+        /// What is wrong with it ([`NOT_FINITE`] or [`BEYOND_F32`]).
+        reason: &'static str,
     },
     /// A row whose time is not after the previous row's.
     #[error(

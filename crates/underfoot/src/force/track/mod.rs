@@ -60,7 +60,7 @@ mod error;
 #[cfg(test)]
 mod tests;
 
-pub use error::TrackError;
+pub use error::{BEYOND_F32, NOT_FINITE, TrackError};
 
 use super::SensorReading;
 use crate::units::Seconds;

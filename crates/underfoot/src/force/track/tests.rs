@@ -162,11 +162,20 @@ fn row_faults_give_their_line() {
         error(&format!("{head}0.1,NaN,2\n")),
         TrackError::BadValue { line: 4, ref column, .. } if column == "l.heel"
     ));
-    // Beyond f32 range parses as infinity, and is caught as such.
-    assert!(matches!(
-        error(&format!("{head}0.1,1e39,2\n")),
-        TrackError::BadValue { line: 4, .. }
-    ));
+    // Beyond f32 range parses as infinity: reported as typed, with what is wrong.
+    let e = error(&format!("{head}0.1,1e300,2\n"));
+    assert!(
+        matches!(e, TrackError::BadValue { line: 4, ref text, reason, .. }
+            if text == "1e300" && reason == super::BEYOND_F32),
+        "{e}"
+    );
+    assert!(e.to_string().contains("\"1e300\" is beyond"), "{e}");
+    let e = error(&format!("{head}0.1,-inf,2\n"));
+    assert!(
+        matches!(e, TrackError::BadValue { ref text, reason, .. }
+            if text == "-inf" && reason == super::NOT_FINITE),
+        "{e}"
+    );
     assert!(matches!(
         error(&format!("{head}inf,1,2\n")),
         TrackError::BadValue { line: 4, ref column, .. } if column == "time_s"
