@@ -291,6 +291,30 @@ mod tests {
     use super::*;
     use crate::signal::noise::SplitMix64;
 
+    proptest::proptest! {
+        /// Any ceiling, any gain, any signal: no sample above the ceiling the user set,
+        /// compared in `f64` with the exact `10^(dB/20)`.
+        #[test]
+        fn no_sample_exceeds_a_random_ceiling(
+            db in -80.0f64..=0.0,
+            gain_db in -20.0f64..=60.0,
+            seed in proptest::prelude::any::<u64>(),
+        ) {
+            let ceiling = Decibels(db);
+            let exact = ceiling.to_amplitude();
+            let gain = Decibels(gain_db).to_amplitude() as f32;
+            let mut lim = Limiter::new(ceiling, Seconds(0.01), SampleRate(48_000));
+            let mut report = LimiterReport::default();
+            let mut rng = SplitMix64::new(seed);
+            for n in 0..2000 {
+                // Steps: a loud click every 100 samples over a quieter noise.
+                let x = if n % 100 == 0 { 1.0 } else { (rng.uniform() - 0.5) as f32 };
+                let y = lim.tick(x * gain, &mut report);
+                proptest::prop_assert!(f64::from(y.abs()) <= exact, "{} over {}", y, exact);
+            }
+        }
+    }
+
     #[test]
     fn the_ceiling_is_never_exceeded_in_exact_arithmetic() {
         // -4 dB is 0.630957344..., whose nearest f32 (0.63095737) is above it.
