@@ -171,8 +171,10 @@ int32_t uf_q31_clamp(int32_t x, int32_t ceiling);
 /* A Q31 cascade output times the material's gain (gain_q 2^-gain_shift), saturated. */
 int32_t uf_q31_gain(const uf_material *m, int32_t y);
 
-/* `ceiling` as an amplitude (e.g. 0.5 for -6 dB); `release` = 1 - exp(-1 / (T fs))
- * for a release time T at rate fs. */
+/* `ceiling` as an amplitude (e.g. 0.5 for -6 dB): the largest float not above the exact
+ * 10^(dB/20) (nextafterf downwards where the nearest float is above it, as -4, -5 and
+ * -20 dB's are), so that no sample exceeds the ceiling asked for; `release` =
+ * 1 - exp(-1 / (T fs)) for a release time T at rate fs. */
 void uf_limiter_init(uf_limiter *limiter, float ceiling, float release);
 float uf_limiter_tick(uf_limiter *limiter, float x);
 
