@@ -125,7 +125,7 @@ fn a_compensation_session_on_the_simulated_tile() {
         "--device",
         s(&eq),
         "--out",
-        s(&eq),
+        s(&p("eq-again.json")),
     ]));
     assert!(err.contains("format \"underfoot.equalizer/1\""), "{err}");
     assert_eq!(fs::read(&eq).unwrap(), before);
