@@ -29,7 +29,7 @@ use underfoot::force::gait::{self, GaitConfig};
 use underfoot::force::track::ForceTrack;
 use underfoot::io::spec::{self, SpecError};
 use underfoot::io::wav::{WavFormat, WavSink};
-use underfoot::units::{Decibels, Hz, Seconds};
+use underfoot::units::{Hz, Seconds};
 
 use crate::commands::synth::SynthArgs;
 use crate::output::emit;
@@ -203,11 +203,11 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let t = out.telemetry;
     let seconds = frames as f64 / rate.hz();
     emit(&format!(
-        "{}: {channels} channel(s), {seconds:.2} s at {rate}, {} strike(s), peak {:.1} dBFS \
+        "{}: {channels} channel(s), {seconds:.2} s at {rate}, {} strike(s), peak {} dBFS \
          (ceiling {:.1} dB), rendered {:.0}x faster than real time\n",
         args.out.display(),
         t.strikes,
-        Decibels::from_amplitude(f64::from(t.peak).max(1e-12)).0,
+        crate::commands::run::status::peak_text(t.peak),
         args.synth.ceiling_db,
         seconds / elapsed.max(1e-9),
     ))?;

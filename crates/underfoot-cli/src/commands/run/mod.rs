@@ -32,7 +32,7 @@ use underfoot::live::{
     InterfaceSummary, LiveError, OutputInfo, OutputReport, RunningSession, SerialSettings, Session,
     SessionConfig, SessionInput, Status, Summary,
 };
-use underfoot::units::{Decibels, Seconds};
+use underfoot::units::Seconds;
 
 use crate::commands::synth::{Setup, SynthArgs};
 use crate::output::emit;
@@ -586,12 +586,12 @@ fn report(summary: &Summary) -> String {
         .map(|(a, _)| format!("{}\n", status::adapt_line(a)))
         .unwrap_or_default();
     format!(
-        "ran {:.1} s: {} strike(s), peak {:.1} dBFS, {} sample(s) limited, {} non-finite \
+        "ran {:.1} s: {} strike(s), peak {} dBFS, {} sample(s) limited, {} non-finite \
          silenced, {} watchdog fade(s)\ninput: {} event(s), {} rejected, {} byte(s) skipped, \
          {} dropped (queue full)\n{link}{clock}{interface}{adapt}{}\n",
         summary.elapsed.as_secs_f64(),
         t.strikes,
-        Decibels::from_amplitude(f64::from(t.peak).max(1e-12)).0,
+        status::peak_text(t.peak),
         t.limited,
         t.non_finite,
         t.watchdog_trips,

@@ -60,9 +60,23 @@ impl Paced {
     }
 }
 
-/// A level in dBFS for display, `-inf` for silence.
+/// The loudest peak that still counts as silence: half a step of a 24-bit converter, which
+/// the widest common output rounds to zero. Filter and limiter tails decay through tiny
+/// non-zero values (-208 dBFS was seen in JSON after a step died away); they are not sound
+/// and are shown as silence, the same way as an exact zero.
+const SILENT_PEAK: f64 = 1.0 / (1u64 << 24) as f64;
+
+/// A level in dBFS for display, `None` (`null` in JSON, `-inf` for a person) for silence.
 fn dbfs(peak: f32) -> Option<f64> {
-    (peak > 0.0).then(|| 20.0 * f64::from(peak).log10())
+    let peak = f64::from(peak);
+    (peak > SILENT_PEAK).then(|| 20.0 * peak.log10())
+}
+
+/// A peak for a person, in dBFS to one decimal, `-inf` for silence: the one way the status
+/// block and the `run` and `render` summaries show a level.
+#[must_use]
+pub fn peak_text(peak: f32) -> String {
+    dbfs(peak).map_or_else(|| "-inf".to_owned(), |d| format!("{d:.1}"))
 }
 
 /// The status block's lines.
@@ -90,7 +104,7 @@ pub fn block(s: &Status) -> Vec<String> {
             c + 1,
             ch.force,
             ch.strikes,
-            dbfs(ch.peak).map_or_else(|| "-inf".to_owned(), |d| format!("{d:.1}")),
+            peak_text(ch.peak),
             ch.limited
         ));
     }
@@ -285,5 +299,25 @@ mod tests {
         assert!((v["channels"][0]["peak_dbfs"].as_f64().unwrap() + 6.02).abs() < 0.01);
         assert!(v["channels"][1]["peak_dbfs"].is_null());
         assert!((v["elapsed_s"].as_f64().unwrap() - 2.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_decaying_tail_below_the_converter_step_is_silence() {
+        // 3.9e-11 is the -208.1 dBFS a dying filter tail used to show as a level.
+        let tail = 3.9e-11_f32;
+        let quiet = 1.0 / (1u32 << 20) as f32;
+        let line = json_line(&status(), &[tail, quiet]);
+        let v: serde_json::Value = serde_json::from_str(&line).unwrap();
+        assert!(v["channels"][0]["peak_dbfs"].is_null(), "{line}");
+        let quiet_db = v["channels"][1]["peak_dbfs"].as_f64().unwrap();
+        assert!((quiet_db + 120.41).abs() < 0.01, "{quiet_db}");
+        let mut s = status();
+        s.channels[0].peak = tail;
+        let lines = block(&s);
+        assert!(
+            lines[3].contains("-inf") && !lines[3].contains("-208"),
+            "{}",
+            lines[3]
+        );
     }
 }

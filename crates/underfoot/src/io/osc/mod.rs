@@ -30,7 +30,9 @@
 //! count per packet), and each message with an unknown address, the wrong number or types of
 //! arguments, a channel out of range, an unknown material, a non-finite force or a
 //! non-finite or negative intensity (one count per message; the good messages of a bundle
-//! still go through). [`OscDecoder`] says why, for diagnostics and tests.
+//! still go through). [`OscDecoder`] says why, for diagnostics and tests, and
+//! [`OscSource::rejections`] counts each reason apart, so that a sender whose messages are
+//! all refused can be told which rule it broke rather than a bare total.
 
 use std::io;
 use std::net::{SocketAddr, UdpSocket};
@@ -83,6 +85,66 @@ pub enum OscReject {
     /// A non-finite force, or a non-finite or negative intensity.
     #[error("non-finite force or bad intensity")]
     Value,
+}
+
+/// Rejections so far, one count per [`OscReject`] reason; they add up to
+/// [`SourceStats::rejected`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct OscRejectCounts {
+    /// [`OscReject::NotOsc`].
+    pub not_osc: u64,
+    /// [`OscReject::TooDeep`].
+    pub too_deep: u64,
+    /// [`OscReject::UnknownAddress`].
+    pub unknown_address: u64,
+    /// [`OscReject::Arguments`].
+    pub arguments: u64,
+    /// [`OscReject::Channel`].
+    pub channel: u64,
+    /// [`OscReject::UnknownMaterial`].
+    pub unknown_material: u64,
+    /// [`OscReject::Value`].
+    pub value: u64,
+}
+
+impl OscRejectCounts {
+    /// Counts one rejection under its reason.
+    pub fn record(&mut self, reject: &OscReject) {
+        let count = match reject {
+            OscReject::NotOsc => &mut self.not_osc,
+            OscReject::TooDeep => &mut self.too_deep,
+            OscReject::UnknownAddress => &mut self.unknown_address,
+            OscReject::Arguments => &mut self.arguments,
+            OscReject::Channel(_) => &mut self.channel,
+            OscReject::UnknownMaterial => &mut self.unknown_material,
+            OscReject::Value => &mut self.value,
+        };
+        *count += 1;
+    }
+
+    /// All reasons together.
+    pub fn total(&self) -> u64 {
+        self.not_osc
+            + self.too_deep
+            + self.unknown_address
+            + self.arguments
+            + self.channel
+            + self.unknown_material
+            + self.value
+    }
+
+    /// Each reason with a name for a person and its count, in a fixed order, zeros included.
+    pub fn by_reason(&self) -> [(&'static str, u64); 7] {
+        [
+            ("not OSC", self.not_osc),
+            ("bundles too deep", self.too_deep),
+            ("unknown address", self.unknown_address),
+            ("bad arguments", self.arguments),
+            ("channel out of range", self.channel),
+            ("unknown material", self.unknown_material),
+            ("bad value", self.value),
+        ]
+    }
 }
 
 /// Why an [`OscDecoder`] cannot be made: a table a `u16` cannot index.
@@ -240,6 +302,9 @@ pub struct OscSource {
     nonblocking: bool,
     read_timeout: Option<Duration>,
     stats: SourceStats,
+    rejections: OscRejectCounts,
+    /// The most recent rejection, so that a log can say what the last refused message did wrong.
+    last_reject: Option<OscReject>,
 }
 
 impl std::fmt::Debug for OscSource {
@@ -249,6 +314,7 @@ impl std::fmt::Debug for OscSource {
             .field("device", &self.device)
             .field("decoder", &self.decoder)
             .field("stats", &self.stats)
+            .field("rejections", &self.rejections)
             .finish_non_exhaustive()
     }
 }
@@ -281,7 +347,19 @@ impl OscSource {
             nonblocking: false,
             read_timeout: None,
             stats: SourceStats::default(),
+            rejections: OscRejectCounts::default(),
+            last_reject: None,
         })
+    }
+
+    /// Rejections so far by reason; [`SourceStats::rejected`] is their total.
+    pub fn rejections(&self) -> OscRejectCounts {
+        self.rejections
+    }
+
+    /// Why the most recent rejected packet or message was refused, if any was.
+    pub fn last_reject(&self) -> Option<OscReject> {
+        self.last_reject
     }
 
     /// The address actually bound, e.g. to learn the port picked for port 0.
@@ -333,13 +411,19 @@ impl OscSource {
 
     fn handle(&mut self, n: usize, out: &mut dyn FnMut(Event)) {
         let stats = &mut self.stats;
+        let rejections = &mut self.rejections;
+        let last_reject = &mut self.last_reject;
         self.decoder
             .decode(&self.buf[..n], &mut |result| match result {
                 Ok(event) => {
                     stats.events += 1;
                     out(event);
                 }
-                Err(_) => stats.rejected += 1,
+                Err(reject) => {
+                    stats.rejected += 1;
+                    rejections.record(&reject);
+                    *last_reject = Some(reject);
+                }
             });
     }
 }

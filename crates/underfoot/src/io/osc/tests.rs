@@ -291,6 +291,32 @@ fn udp_round_trip() {
     );
     assert_eq!(stats.rejected, bad.len() as u64);
     assert_eq!(stats.events, want.len() as u64 + 1);
+
+    // Each reason is counted apart, and the counts are the same total.
+    let mut expected = OscRejectCounts::default();
+    for (_, _, reason) in &bad {
+        expected.record(reason);
+    }
+    let counts = source.rejections();
+    assert_eq!(counts, expected);
+    assert_eq!(counts.total(), stats.rejected);
+    assert!(counts.not_osc >= 3 && counts.channel >= 2 && counts.arguments >= 5);
+    // Localhost UDP keeps order, and the good message after the bad ones leaves the last reason.
+    assert_eq!(source.last_reject(), bad.last().map(|(_, _, r)| *r));
+}
+
+#[test]
+fn rejection_counts_name_each_reason() {
+    let mut counts = OscRejectCounts::default();
+    counts.record(&OscReject::Channel(2));
+    counts.record(&OscReject::Channel(-1));
+    counts.record(&OscReject::UnknownAddress);
+    assert_eq!(counts.total(), 3);
+    let by_reason = counts.by_reason();
+    let named = |name: &str| by_reason.iter().find(|(n, _)| *n == name).unwrap().1;
+    assert_eq!(named("channel out of range"), 2);
+    assert_eq!(named("unknown address"), 1);
+    assert_eq!(by_reason.iter().map(|(_, c)| c).sum::<u64>(), 3);
 }
 
 proptest! {
