@@ -787,6 +787,72 @@ fn panel_fits_uploaded_recordings_and_plays_them() {
     assert_eq!(files_under(panel.tmp.path()), Vec::<PathBuf>::new());
 }
 
+/// A fit made after the session ended is written to the library and reported done
+/// (it used to be written, then reported failed because the session had gone).
+#[test]
+#[ignore = "slow tier: a fit from real recordings (about 20 s)"]
+fn panel_fit_after_the_session_ended_is_saved_and_reported_done() {
+    let Some(data) = footsteps_dir() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let lib = write_library(dir.path(), &["tile-a"]);
+    let panel = Panel::start(&[
+        "--input",
+        "gait:steps=1",
+        "--output",
+        "null",
+        "--library",
+        lib.to_str().unwrap(),
+    ]);
+    panel.wait_for(Duration::from_secs(20), "ended", |s| s["state"] == "ended");
+    let mut ids = Vec::new();
+    for n in 1..=2 {
+        let bytes =
+            std::fs::read(data.join(format!("gravel/default_gravel_footstep.{n}.ogg"))).unwrap();
+        let origin = format!("http://{}", panel.addr);
+        let r = request(
+            panel.addr,
+            "POST",
+            &format!("/api/uploads?name=gravel-{n}.ogg"),
+            &[("X-Underfoot-Token", &panel.token), ("Origin", &origin)],
+            &bytes,
+        );
+        assert_eq!(r.status, 200, "{}", r.body);
+        ids.push(r.json()["id"].as_u64().unwrap());
+    }
+    let job = panel.post(
+        "/api/fit",
+        &format!(r#"{{"name":"lab-late","uploads":{ids:?}}}"#),
+    );
+    assert_eq!(job.status, 200, "{}", job.body);
+    let id = job.json()["id"].as_u64().unwrap();
+    let start = Instant::now();
+    let done = loop {
+        let r = get(panel.addr, &format!("/api/fit/{id}")).json();
+        match r["state"].as_str().unwrap() {
+            "done" => break r,
+            "failed" => panic!("the fit was reported failed: {r}"),
+            _ => {}
+        }
+        assert!(start.elapsed() < Duration::from_secs(120), "{r}");
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    let saved = done["saved"].as_str().unwrap();
+    assert!(
+        saved.contains("lib.json") && saved.contains("not running"),
+        "{saved}"
+    );
+    let file: Value = serde_json::from_str(&std::fs::read_to_string(&lib).unwrap()).unwrap();
+    let names: Vec<_> = file["materials"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m["name"].as_str().unwrap().to_owned())
+        .collect();
+    assert_eq!(names, ["tile-a", "lab-late"]);
+    let mut panel = panel;
+    assert!(panel.interrupt().success());
+}
+
 /// A seeded xorshift: the fuzz cases are the same on every run.
 struct Rng(u64);
 

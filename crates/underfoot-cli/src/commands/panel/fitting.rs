@@ -269,6 +269,14 @@ fn fit(
     let loo = leave_one_out(&recordings, &cfg, &model)?
         .as_ref()
         .map(LeaveOneOutReport::of);
+    // Prepared before anything is written: a material the engine cannot take fails the
+    // fit with the library untouched. Once written, the fit is never reported failed.
+    progress("preparing it for the engine".into());
+    let (preparation, remote) = {
+        let view = shared.session();
+        (view.preparation.clone(), view.remote.clone())
+    };
+    let prepared = preparation.map(|p| p.prepare(&model)).transpose()?;
     let saved = match (&library_out, &shared.library) {
         (Some(out), Some(path)) => {
             progress(format!("saving into {}", path.display()));
@@ -284,24 +292,48 @@ fn fit(
         _ => "Kept for this session only (start the panel with --library FILE to save fits)"
             .to_owned(),
     };
-    progress("preparing it for the engine".into());
-    let (preparation, remote) = {
-        let view = shared.session();
-        (view.preparation.clone(), view.remote.clone())
+    let (Some((iir, physical)), Some(remote)) = (prepared, remote) else {
+        let json = Entry {
+            model,
+            slots: Slots {
+                iir: 0,
+                physical: None,
+            },
+            added: true,
+            leave_one_out: loo,
+        }
+        .to_json();
+        return Ok((
+            json,
+            format!("{saved}; the session is not running, so it does not play now"),
+        ));
     };
-    let (iir, physical) = preparation
-        .ok_or_else(|| anyhow::anyhow!("the session has not started"))?
-        .prepare(&model)?;
-    let remote = remote
-        .ok_or_else(|| anyhow::anyhow!("the session has ended: the material was not added"))?;
     let slot = |m| -> anyhow::Result<u16> {
         remote
             .send(RemoteCommand::Add(Box::new(m)))?
             .ok_or_else(|| anyhow::anyhow!("the session gave no slot"))
     };
-    let slots = Slots {
-        iir: slot(iir)?,
-        physical: physical.map(slot).transpose()?,
+    // Saved already: a session that ended meanwhile makes this a note, not a failure.
+    let slots = match slot(iir).and_then(|iir| {
+        Ok(Slots {
+            iir,
+            physical: physical.map(slot).transpose()?,
+        })
+    }) {
+        Ok(slots) => slots,
+        Err(e) => {
+            let json = Entry {
+                model,
+                slots: Slots {
+                    iir: 0,
+                    physical: None,
+                },
+                added: true,
+                leave_one_out: loo,
+            }
+            .to_json();
+            return Ok((json, format!("{saved}; not playing now: {e:#}")));
+        }
     };
     let entry = Entry {
         model,
