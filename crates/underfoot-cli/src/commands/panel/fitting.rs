@@ -215,7 +215,7 @@ pub fn start(shared: &Arc<Shared>, name: &str, ids: &[u64]) -> Result<u64, Strin
                 },
                 Err(e) => JobState::Failed {
                     progress: format!("{name}: failed"),
-                    error: format!("{e:#}"),
+                    error: crate::message::chain(&e),
                 },
             });
         })
@@ -332,7 +332,10 @@ fn fit(
                 leave_one_out: loo,
             }
             .to_json();
-            return Ok((json, format!("{saved}; not playing now: {e:#}")));
+            return Ok((
+                json,
+                format!("{saved}; not playing now: {}", crate::message::chain(&e)),
+            ));
         }
     };
     let entry = Entry {

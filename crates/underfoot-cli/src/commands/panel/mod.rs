@@ -147,7 +147,10 @@ pub fn run(args: &PanelArgs) -> anyhow::Result<()> {
     let outcome = run_session(&args.run, &stop, Some(&mut observer));
     if let Err(e) = &outcome {
         // The page says why; so does the terminal, now rather than after Ctrl-C.
-        eprintln!("underfoot: the session ended on an error: {e:#}");
+        eprintln!(
+            "underfoot: the session ended on an error: {}",
+            crate::message::chain(e)
+        );
     }
     if !quit.load(Ordering::SeqCst) {
         eprintln!("underfoot: the session has ended; the panel stays up on {url} (Ctrl-C to quit)");

@@ -548,7 +548,7 @@ impl Observer for PanelObserver {
                     summary.elapsed.as_secs_f64()
                 ),
             }),
-            Err(e) => Phase::Failed(format!("{e:#}")),
+            Err(e) => Phase::Failed(crate::message::chain(e)),
         };
         if let (Some(last), Ok(summary)) = (&mut view.last, outcome) {
             last.telemetry = summary.telemetry;
