@@ -227,7 +227,8 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     if t.strikes == 0 {
         eprintln!(
             "underfoot: warning: no heel strike found: the force never rose through {} \
-             (is the track in newtons?)",
+             (is the track in newtons? --step-threshold sets the force a strike rises \
+             through)",
             setup.config.detector.on
         );
     }

@@ -41,6 +41,12 @@ fn parse_gain_db(s: &str) -> Result<f64, underfoot::io::spec::SpecError> {
     underfoot::io::spec::parse_number(s, "gain (dB)", -120.0, 60.0)
 }
 
+/// `--step-threshold`: a total force a heel strike rises through, from 1 N (a noise-free
+/// sensor and a light foot) to 5000 N (seven times a 70 kg walker's weight).
+fn parse_step_threshold(s: &str) -> Result<f64, underfoot::io::spec::SpecError> {
+    underfoot::io::spec::parse_number(s, "step threshold (N)", 1.0, 5000.0)
+}
+
 /// Synthesis settings.
 #[derive(Debug, Clone, Args)]
 pub struct SynthArgs {
@@ -90,6 +96,17 @@ pub struct SynthArgs {
     /// Nominal body mass the force drives are normalised for, in kg.
     #[arg(long = "weight", default_value_t = 70.0, value_name = "KG")]
     pub weight_kg: f64,
+    /// Total force, in newtons, that a heel strike rises through: a strike is found where
+    /// the summed sensors cross it upwards, and the detector re-arms below half of it.
+    /// Lower it for a light participant or insensitive sensors, raise it above a noisy
+    /// sensor's floor.
+    #[arg(
+        long = "step-threshold",
+        default_value_t = 60.0,
+        value_name = "N",
+        value_parser = parse_step_threshold
+    )]
+    pub step_threshold_n: f64,
     /// About how often force readings arrive, in Hz (sets the force interpolation).
     #[arg(long = "sensor-rate", default_value_t = 500.0, value_name = "HZ")]
     pub sensor_rate: f64,
@@ -254,6 +271,9 @@ impl SynthArgs {
                     .with_context(|| format!("the limb compensation of {who}"))?,
             );
         }
+        // The re-arming threshold keeps the default's ratio (30 N under 60 N).
+        config.detector.on = Newtons(self.step_threshold_n);
+        config.detector.off = Newtons(self.step_threshold_n / 2.0);
         config.detector.nominal_loading_rate = config.detector.loading_rate_of(
             &nominal_step(self.weight_kg, 1.8, self.sensor_rate),
             SampleRate(self.sensor_rate.round() as u32),

@@ -184,3 +184,38 @@ fn a_negative_number_is_read_as_a_value() {
         s(&out),
     ]));
 }
+
+/// The step threshold is a flag: above every step's force no strike is found, and the
+/// warning names the threshold and the flag; at a reachable one every step strikes.
+#[test]
+fn the_step_threshold_is_a_flag() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("t.wav");
+    let render = |threshold: &str| {
+        run(&[
+            "render",
+            "--material",
+            "hard",
+            "--gait",
+            "steps=4,channels=1",
+            "--step-threshold",
+            threshold,
+            "--out",
+            s(&out),
+        ])
+    };
+    let o = render("2000");
+    assert_ok(&o);
+    assert!(stdout(&o).contains(" 0 strike(s)"), "{}", stdout(&o));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("never rose through 2000 N") && e.contains("--step-threshold"),
+        "{e}"
+    );
+    let o = render("300");
+    assert_ok(&o);
+    assert!(stdout(&o).contains(" 4 strike(s)"), "{}", stdout(&o));
+    let o = render("0");
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("from 1 to 5000"));
+}
