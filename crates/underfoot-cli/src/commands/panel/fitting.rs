@@ -292,36 +292,39 @@ fn fit(
         _ => "Kept for this session only (start the panel with --library FILE to save fits)"
             .to_owned(),
     };
-    let (Some((iir, physical)), Some(remote)) = (prepared, remote) else {
-        let json = Entry {
-            model,
-            slots: Slots {
-                iir: 0,
-                physical: None,
-            },
-            added: true,
-            leave_one_out: loo,
+    // Saved already: from here on, a session that is not running, or that ended
+    // meanwhile, makes a note on the saved fit, not a failure.
+    let slots = match (prepared, remote) {
+        (Some((iir, physical)), Some(remote)) => {
+            let slot = |m| -> anyhow::Result<u16> {
+                remote
+                    .send(RemoteCommand::Add(Box::new(m)))?
+                    .ok_or_else(|| anyhow::anyhow!("the session gave no slot"))
+            };
+            slot(iir)
+                .and_then(|iir| {
+                    Ok(Slots {
+                        iir,
+                        physical: physical.map(slot).transpose()?,
+                    })
+                })
+                .map_err(|e| format!("not playing now: {}", crate::message::chain(&e)))
         }
-        .to_json();
-        return Ok((
-            json,
-            format!("{saved}; the session is not running, so it does not play now"),
-        ));
+        _ => Err("the session is not running, so it does not play now".to_owned()),
     };
-    let slot = |m| -> anyhow::Result<u16> {
-        remote
-            .send(RemoteCommand::Add(Box::new(m)))?
-            .ok_or_else(|| anyhow::anyhow!("the session gave no slot"))
-    };
-    // Saved already: a session that ended meanwhile makes this a note, not a failure.
-    let slots = match slot(iir).and_then(|iir| {
-        Ok(Slots {
-            iir,
-            physical: physical.map(slot).transpose()?,
-        })
-    }) {
-        Ok(slots) => slots,
-        Err(e) => {
+    match slots {
+        Ok(slots) => {
+            let entry = Entry {
+                model,
+                slots,
+                added: true,
+                leave_one_out: loo,
+            };
+            let json = entry.to_json();
+            shared.session().add(entry);
+            Ok((json, saved))
+        }
+        Err(why) => {
             let json = Entry {
                 model,
                 slots: Slots {
@@ -332,19 +335,7 @@ fn fit(
                 leave_one_out: loo,
             }
             .to_json();
-            return Ok((
-                json,
-                format!("{saved}; not playing now: {}", crate::message::chain(&e)),
-            ));
+            Ok((json, format!("{saved}; {why}")))
         }
-    };
-    let entry = Entry {
-        model,
-        slots,
-        added: true,
-        leave_one_out: loo,
-    };
-    let json = entry.to_json();
-    shared.session().add(entry);
-    Ok((json, saved))
+    }
 }
