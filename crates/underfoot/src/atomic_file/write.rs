@@ -38,28 +38,16 @@ impl OutputFile {
     /// permission), or for standard output.
     pub fn create_temporary(&self) -> Result<(PathBuf, File), AtomicWriteError> {
         static COUNTER: AtomicU64 = AtomicU64::new(0);
-        let Target::File(target) = &self.target else {
-            return Err(refuse(
-                &self.given,
-                std::io::ErrorKind::InvalidInput,
-                "standard output cannot be written through a temporary file".into(),
-            ));
-        };
-        let dir = parent_dir(target);
-        let name = target.file_name().unwrap_or_default().to_string_lossy();
         // pid and counter keep concurrent writers out of each other's way; the name ends
         // with the target's, so a writer that goes by the extension (plots) still can.
-        let tmp = dir.join(format!(
-            ".tmp-{}-{}.{name}",
-            std::process::id(),
-            COUNTER.fetch_add(1, Ordering::Relaxed)
-        ));
-        let f = fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(&tmp)
-            .map_err(io(&tmp, "creating a temporary file"))?;
-        Ok((tmp, f))
+        self.create_beside("a temporary file", "creating a temporary file", |target| {
+            let name = target.file_name().unwrap_or_default().to_string_lossy();
+            format!(
+                ".tmp-{}-{}.{name}",
+                std::process::id(),
+                COUNTER.fetch_add(1, Ordering::Relaxed)
+            )
+        })
     }
 
     /// Creates a new, empty file beside the target that is worth keeping if the writer
@@ -71,25 +59,38 @@ impl OutputFile {
     /// # Errors
     /// As [`create_temporary`](Self::create_temporary).
     pub fn create_partial(&self) -> Result<(PathBuf, File), AtomicWriteError> {
+        self.create_beside("a partial file", "creating the partial file", |target| {
+            let stem = target.file_stem().unwrap_or_default().to_string_lossy();
+            let pid = std::process::id();
+            match target.extension() {
+                Some(ext) => format!("{stem}.partial-{pid}.{}", ext.to_string_lossy()),
+                None => format!("{stem}.partial-{pid}"),
+            }
+        })
+    }
+
+    /// Creates the new file `name(target)` in the resolved target's folder (so that the
+    /// rename over the target stays on one file system); `kind` names it in the refusal
+    /// for standard output, `action` in an I/O error.
+    fn create_beside(
+        &self,
+        kind: &str,
+        action: &'static str,
+        name: impl FnOnce(&Path) -> String,
+    ) -> Result<(PathBuf, File), AtomicWriteError> {
         let Target::File(target) = &self.target else {
             return Err(refuse(
                 &self.given,
                 std::io::ErrorKind::InvalidInput,
-                "standard output cannot be written through a partial file".into(),
+                format!("standard output cannot be written through {kind}"),
             ));
         };
-        let stem = target.file_stem().unwrap_or_default().to_string_lossy();
-        let pid = std::process::id();
-        let name = match target.extension() {
-            Some(ext) => format!("{stem}.partial-{pid}.{}", ext.to_string_lossy()),
-            None => format!("{stem}.partial-{pid}"),
-        };
-        let path = parent_dir(target).join(name);
+        let path = parent_dir(target).join(name(target));
         let f = fs::OpenOptions::new()
             .write(true)
             .create_new(true)
             .open(&path)
-            .map_err(io(&path, "creating the partial file"))?;
+            .map_err(io(&path, action))?;
         Ok((path, f))
     }
 
@@ -129,36 +130,19 @@ impl OutputFile {
     /// [`AtomicWriteError`] naming the step that failed, or a refusal if the target has
     /// become something the policy refuses since the check.
     pub fn persist(&self, tmp: &Path, file: &File) -> Result<(), AtomicWriteError> {
-        self.persist_with(tmp, file, true)
-    }
-
-    /// [`persist`](Self::persist) without waiting for the disk: for a live recording,
-    /// whose writer thread must keep pace with a device clock (an `fsync` on a busy disk
-    /// can take longer than a buffer). The data are in the kernel, safe from a killed
-    /// process; the writer flushes them to disk when it finishes.
-    ///
-    /// # Errors
-    /// As [`persist`](Self::persist).
-    pub fn persist_unsynced(&self, tmp: &Path, file: &File) -> Result<(), AtomicWriteError> {
-        self.persist_with(tmp, file, false)
-    }
-
-    fn persist_with(&self, tmp: &Path, file: &File, sync: bool) -> Result<(), AtomicWriteError> {
         let target = self.target();
         if let Ok(meta) = fs::metadata(target) {
             file.set_permissions(meta.permissions())
                 .map_err(io(tmp, "copying permissions to the temporary file"))?;
         }
-        if sync {
-            file.sync_all()
-                .map_err(io(tmp, "flushing the temporary file to disk"))?;
-        }
+        file.sync_all()
+            .map_err(io(tmp, "flushing the temporary file to disk"))?;
         // Once more just before the rename: the check may have been minutes ago (a fit).
         check_kind(&self.given, target)?;
         fs::rename(tmp, target).map_err(io(&self.given, "renaming the temporary file over it"))?;
         // Make the rename itself durable. Not every platform can open a directory; the
         // data is already safe in the file, so a failure here is not worth failing the save.
-        if sync && let Ok(d) = File::open(parent_dir(target)) {
+        if let Ok(d) = File::open(parent_dir(target)) {
             let _ = d.sync_all();
         }
         Ok(())
