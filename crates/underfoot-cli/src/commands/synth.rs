@@ -102,7 +102,7 @@ pub struct SynthArgs {
     /// sensor's floor.
     #[arg(
         long = "step-threshold",
-        default_value_t = 60.0,
+        default_value_t = underfoot::force::steps::DEFAULT_THRESHOLD.0,
         value_name = "N",
         value_parser = parse_step_threshold
     )]
@@ -271,9 +271,9 @@ impl SynthArgs {
                     .with_context(|| format!("the limb compensation of {who}"))?,
             );
         }
-        // The re-arming threshold keeps the default's ratio (30 N under 60 N).
-        config.detector.on = Newtons(self.step_threshold_n);
-        config.detector.off = Newtons(self.step_threshold_n / 2.0);
+        config
+            .detector
+            .set_threshold(Newtons(self.step_threshold_n));
         config.detector.nominal_loading_rate = config.detector.loading_rate_of(
             &nominal_step(self.weight_kg, 1.8, self.sensor_rate),
             SampleRate(self.sensor_rate.round() as u32),

@@ -31,12 +31,19 @@
 
 use crate::units::{Hz, Newtons, SampleRate, Seconds};
 
+/// The default rising threshold: well above a force-sensing resistor's ±10 N.
+pub const DEFAULT_THRESHOLD: Newtons = Newtons(60.0);
+
+/// Where the detector re-arms, as a fraction of the rising threshold (30 N under 60 N):
+/// far enough under it that a sensor's noise at the threshold does not fire twice.
+pub const REARM_FRACTION: f64 = 0.5;
+
 /// Detector settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DetectorConfig {
-    /// Rising threshold (default 60 N: well above a force-sensing resistor's ±10 N).
+    /// Rising threshold (default [`DEFAULT_THRESHOLD`], 60 N).
     pub on: Newtons,
-    /// Re-arming threshold (default 30 N).
+    /// Re-arming threshold (default [`REARM_FRACTION`] of the rising one, 30 N).
     pub off: Newtons,
     /// Shortest time between strikes (default 0.2 s, faster than any running cadence).
     pub refractory: Seconds,
@@ -53,8 +60,8 @@ impl Default for DetectorConfig {
     /// gait model's nominal step (70 kg, 1.8 steps/s) read at 500 Hz.
     fn default() -> Self {
         let mut config = Self {
-            on: Newtons(60.0),
-            off: Newtons(30.0),
+            on: DEFAULT_THRESHOLD,
+            off: Newtons(DEFAULT_THRESHOLD.0 * REARM_FRACTION),
             refractory: Seconds(0.2),
             nominal_loading_rate: 1.0,
             min_intensity: 0.1,
@@ -69,6 +76,14 @@ impl Default for DetectorConfig {
 }
 
 impl DetectorConfig {
+    /// Sets the rising threshold to `on` and the re-arming one to [`REARM_FRACTION`] of
+    /// it. The caller then sets [`nominal_loading_rate`](Self::nominal_loading_rate) for
+    /// the new crossing ([`loading_rate_of`](Self::loading_rate_of)).
+    pub fn set_threshold(&mut self, on: Newtons) {
+        self.on = on;
+        self.off = Newtons(on.0 * REARM_FRACTION);
+    }
+
     /// The loading rate the detector measures at the `on` crossing of `step` (total force
     /// sampled at `rate`): what to use as [`nominal_loading_rate`](Self::nominal_loading_rate)
     /// for a nominal step. 1 N/s if the step never crosses.
