@@ -131,6 +131,31 @@ impl Panel {
         }
     }
 
+    /// Fits `name` from the uploads `ids` through `POST /api/fit` and waits (up to two
+    /// minutes) for the job to end; a job that fails fails the test. The job's last state.
+    pub fn fit_and_wait(&self, name: &str, ids: &[u64]) -> Value {
+        let job = self.post(
+            "/api/fit",
+            &format!(r#"{{"name":"{name}","uploads":{ids:?}}}"#),
+        );
+        assert_eq!(job.status, 200, "{}", job.body);
+        let id = job.json()["id"].as_u64().unwrap();
+        let start = Instant::now();
+        loop {
+            let r = get(self.addr, &format!("/api/fit/{id}")).json();
+            match r["state"].as_str().unwrap() {
+                "done" => return r,
+                "failed" => panic!("the fit was reported failed: {r}"),
+                _ => {}
+            }
+            assert!(
+                start.elapsed() < Duration::from_secs(120),
+                "the fit did not finish: {r}"
+            );
+            std::thread::sleep(Duration::from_millis(200));
+        }
+    }
+
     /// Ctrl-C, then the exit status.
     pub fn interrupt(&mut self) -> std::process::ExitStatus {
         let _ = Command::new("kill")
@@ -723,26 +748,7 @@ fn panel_fits_uploaded_recordings_and_plays_them() {
             .any(|p| p.to_string_lossy().ends_with("upload-1.ogg")),
         "{temp:?}"
     );
-    let job = panel.post(
-        "/api/fit",
-        &format!(r#"{{"name":"lab-gravel","uploads":{ids:?}}}"#),
-    );
-    assert_eq!(job.status, 200, "{}", job.body);
-    let id = job.json()["id"].as_u64().unwrap();
-    let start = Instant::now();
-    let done = loop {
-        let r = get(panel.addr, &format!("/api/fit/{id}")).json();
-        match r["state"].as_str().unwrap() {
-            "done" => break r,
-            "failed" => panic!("the fit failed: {r}"),
-            _ => {}
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(120),
-            "the fit did not finish: {r}"
-        );
-        std::thread::sleep(Duration::from_millis(200));
-    };
+    let done = panel.fit_and_wait("lab-gravel", &ids);
     let m = &done["material"];
     assert_eq!(m["name"], "lab-gravel");
     assert!(m["lsd_db"].as_f64().unwrap() < 3.0, "{m}");
@@ -819,23 +825,7 @@ fn panel_fit_after_the_session_ended_is_saved_and_reported_done() {
         assert_eq!(r.status, 200, "{}", r.body);
         ids.push(r.json()["id"].as_u64().unwrap());
     }
-    let job = panel.post(
-        "/api/fit",
-        &format!(r#"{{"name":"lab-late","uploads":{ids:?}}}"#),
-    );
-    assert_eq!(job.status, 200, "{}", job.body);
-    let id = job.json()["id"].as_u64().unwrap();
-    let start = Instant::now();
-    let done = loop {
-        let r = get(panel.addr, &format!("/api/fit/{id}")).json();
-        match r["state"].as_str().unwrap() {
-            "done" => break r,
-            "failed" => panic!("the fit was reported failed: {r}"),
-            _ => {}
-        }
-        assert!(start.elapsed() < Duration::from_secs(120), "{r}");
-        std::thread::sleep(Duration::from_millis(200));
-    };
+    let done = panel.fit_and_wait("lab-late", &ids);
     let saved = done["saved"].as_str().unwrap();
     assert!(
         saved.contains("lib.json") && saved.contains("not running"),
