@@ -43,6 +43,9 @@ enum Command {
     Render(commands::render::RenderArgs),
     /// Run the live engine: force from a replay, serial port or OSC, to a device.
     Run(commands::run::RunArgs),
+    /// Recorded sessions (`run --record DIR`): summarise one, plot its timeline.
+    #[command(subcommand)]
+    Session(commands::session::SessionCommand),
     /// `run` with a control panel in a web page: live meters, materials, gain, stop, fits.
     Panel(commands::panel::PanelArgs),
     /// A library as a C99 header for firmware: float, Q15/Q31 sections (checked), the loop.
@@ -85,6 +88,7 @@ fn main() -> ExitCode {
         Command::Render(args) => commands::render::run(&args),
         Command::Run(args) => commands::run::run(&args),
         Command::Panel(args) => commands::panel::run(&args),
+        Command::Session(cmd) => commands::session::run(&cmd),
         Command::Demo(args) => commands::demo::run(&args),
         Command::Export(args) => commands::export::run(&args),
     };

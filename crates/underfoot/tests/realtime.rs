@@ -248,6 +248,7 @@ fn rendering_never_allocates_or_frees() {
 fn the_paced_pseudo_device_never_allocates_or_frees() {
     use std::time::Duration;
     use underfoot::live::PacedDevice;
+    use underfoot::live::record::OutputTap;
 
     let rate = SampleRate(48_000);
     let bank = banks().0.clone();
@@ -258,7 +259,11 @@ fn the_paced_pseudo_device_never_allocates_or_frees() {
     let (mut ctl, eng) = engine::build(&config, bank, &[0, 1]).unwrap();
     let block = 256;
     let period = Duration::from_secs_f64(block as f64 / rate.hz());
-    let mut device = PacedDevice::new(eng, None, 2, rate, block);
+    // With a session record's tap: every buffer copied into its ring too.
+    let (tap, mut reader) = OutputTap::pair(2, rate);
+    let mut device = PacedDevice::new(eng, None, 2, rate, block).with_record(tap);
+    let mut recorded = Vec::new();
+    let mut strikes = 0;
     for n in 0..300u64 {
         // The control side, outside the watched region: readings at about 500 Hz.
         let t = (n * 256) as f32 / 48_000.0;
@@ -282,13 +287,19 @@ fn the_paced_pseudo_device_never_allocates_or_frees() {
             std::thread::sleep(wait + Duration::from_millis(1100));
         }
         ctl.collect();
+        reader.take(&mut recorded);
+        strikes += ctl.take_strikes(|_| {});
     }
     let report = device.finish().unwrap();
     assert_eq!(report.blocks, 300);
+    assert_eq!(recorded.len(), 300 * 256 * 2);
+    assert_eq!(reader.dropped(), 0);
     // Two late wake-ups made here; a loaded machine may add its own.
     assert!(report.late >= 2, "{report:?}");
     let t = ctl.telemetry();
     assert!(t.strikes > 0 && t.stopped, "{t:?}");
+    // Every strike reached the log, from inside the watched calls.
+    assert_eq!(strikes as u64, t.strikes);
 }
 
 /// Every built-in but `hard` plays a train of micro-impacts after its heel (thousands a

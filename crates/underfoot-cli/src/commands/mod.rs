@@ -8,4 +8,5 @@ pub mod library;
 pub mod panel;
 pub mod render;
 pub mod run;
+pub mod session;
 pub mod synth;

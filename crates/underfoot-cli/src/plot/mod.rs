@@ -18,6 +18,7 @@
 //! | `spectrogram.rs` | [`draw_spectrogram`]: a signal's spectrogram with its segments and colour bar |
 //! | `responses.rs` | [`draw_responses`]: magnitude responses in one panel |
 //! | `steps.rs` | [`draw_steps`]: steps in time, recorded against rendered, a panel per material |
+//! | `timeline.rs` | [`draw_timeline`]: a recorded session's force, strikes, output envelope and markers on one time axis |
 
 mod axes;
 mod font;
@@ -25,6 +26,7 @@ mod responses;
 mod spectra;
 mod spectrogram;
 mod steps;
+mod timeline;
 
 use std::path::Path;
 
@@ -36,6 +38,7 @@ pub use responses::{Curve, draw_responses};
 pub use spectra::{Panel, draw_spectra};
 pub use spectrogram::{Segment, draw_spectrogram};
 pub use steps::{StepPanel, draw_steps};
+pub use timeline::{Timeline, TimelineMarker, draw_timeline};
 
 /// The image formats a plot can be written in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -11,6 +11,7 @@ use crate::units::SampleRate;
 use super::channel::Channel;
 use super::clock::SensorClock;
 use super::controller::{Command, Retired};
+use super::event::StrikeRecord;
 use super::telemetry::BlockLevels;
 use super::{Event, OutputStage, Telemetry};
 
@@ -30,6 +31,8 @@ pub struct Engine {
     pub(super) pending: Vec<(u64, Event)>,
     pub(super) commands: rtrb::Consumer<Command>,
     pub(super) retired: rtrb::Producer<Retired>,
+    /// Every strike, for a session's record ([`StrikeRecord`]).
+    pub(super) strike_log: rtrb::Producer<StrikeRecord>,
     pub(super) telemetry: Arc<Telemetry>,
     pub(super) scratch: Vec<f32>,
     pub(super) peak: f32,
@@ -183,24 +186,41 @@ impl Engine {
             self.telemetry.count_rejected();
             return;
         };
-        match event {
+        let sensor_time = match event {
             Event::Force { reading, .. } => {
                 if channel.force(&reading, frame, &self.telemetry) {
                     stage.feed();
                 }
+                reading.time()
             }
             Event::Step { intensity, .. } => {
                 if channel.step(intensity, &self.telemetry) {
                     stage.feed_step();
                 }
+                None
             }
-            Event::Material { slot, .. } => match self.bank.get(usize::from(slot)) {
-                Some(m) => {
-                    channel.set_material(slot, m);
-                    self.telemetry.meter_slot(index, slot);
+            Event::Material { slot, .. } => {
+                match self.bank.get(usize::from(slot)) {
+                    Some(m) => {
+                        channel.set_material(slot, m);
+                        self.telemetry.meter_slot(index, slot);
+                    }
+                    None => self.telemetry.count_rejected(),
                 }
-                None => self.telemetry.count_rejected(),
-            },
+                None
+            }
+        };
+        if let Some(intensity) = channel.take_struck() {
+            let record = StrikeRecord {
+                frame,
+                channel: event.channel(),
+                intensity,
+                slot: channel.slot(),
+                sensor_time,
+            };
+            if self.strike_log.push(record).is_err() {
+                self.telemetry.count_unlogged_strike();
+            }
         }
     }
 

@@ -50,6 +50,9 @@ pub(super) struct Channel {
     fade_left: u32,
     fade_len: u32,
     pending_impulse: f32,
+    /// The intensity of a strike (or step) taken since [`Channel::take_struck`] was last
+    /// called: the engine logs it ([`super::StrikeRecord`]).
+    struck: Option<f32>,
     previous_total: f32,
     last_drive: f32,
     /// The largest absolute drive sample of the last block rendered, for the meter.
@@ -92,6 +95,7 @@ impl Channel {
             fade_left: 0,
             fade_len: rate.samples_in(config.crossfade).max(1) as u32,
             pending_impulse: 0.0,
+            struck: None,
             previous_total: 0.0,
             last_drive: 0.0,
             drive_peak: 0.0,
@@ -109,6 +113,16 @@ impl Channel {
         } else {
             f32::MAX
         }
+    }
+
+    /// The intensity of the strike the last event started, if it started one.
+    pub(super) fn take_struck(&mut self) -> Option<f32> {
+        self.struck.take()
+    }
+
+    /// The bank slot the channel plays, if it has a material.
+    pub(super) fn slot(&self) -> Option<u16> {
+        self.slot
     }
 
     /// Its index in the engine.
@@ -176,6 +190,7 @@ impl Channel {
         }
         let intensity = intensity.clamp(0.0, 4.0);
         telemetry.count_strike(self.index);
+        self.struck = Some(intensity);
         self.perturb();
         // No force will follow: the excitation's clock runs at the nominal pace.
         self.excitation.step(&self.tables, intensity);
@@ -188,6 +203,7 @@ impl Channel {
 
     fn strike(&mut self, intensity: f32, telemetry: &Telemetry) {
         telemetry.count_strike(self.index);
+        self.struck = Some(intensity);
         self.perturb();
         self.excitation.strike(&self.tables, intensity);
     }

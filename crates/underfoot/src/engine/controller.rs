@@ -6,7 +6,7 @@ use std::sync::Arc;
 use crate::synthesis::PreparedMaterial;
 use crate::units::{Decibels, SampleRate};
 
-use super::{EngineError, Telemetry, TelemetrySnapshot, TimedEvent};
+use super::{EngineError, StrikeRecord, Telemetry, TelemetrySnapshot, TimedEvent};
 
 pub(super) enum Command {
     Event(TimedEvent),
@@ -30,6 +30,7 @@ pub(super) enum Retired {
 pub struct Controller {
     pub(super) commands: rtrb::Producer<Command>,
     pub(super) retired: rtrb::Consumer<Retired>,
+    pub(super) strike_log: rtrb::Consumer<StrikeRecord>,
     pub(super) telemetry: Arc<Telemetry>,
     pub(super) names: Vec<String>,
     /// Slots the bank can hold in all: its materials and the spare ones reserved at
@@ -167,6 +168,19 @@ impl Controller {
                 Retired::Material(material) => drop(material),
                 Retired::Weights(weights) => drop(weights),
             }
+            n += 1;
+        }
+        n
+    }
+
+    /// Hands every strike the engine has logged since the last call to `each`, in the
+    /// order played ([`StrikeRecord`]). Call it at least every few seconds when the log
+    /// matters: records that find the log full are only counted
+    /// ([`TelemetrySnapshot::unlogged_strikes`]).
+    pub fn take_strikes(&mut self, mut each: impl FnMut(&StrikeRecord)) -> usize {
+        let mut n = 0;
+        while let Ok(record) = self.strike_log.pop() {
+            each(&record);
             n += 1;
         }
         n

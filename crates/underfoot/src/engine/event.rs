@@ -71,3 +71,29 @@ impl TimedEvent {
         }
     }
 }
+
+/// A strike the engine played: what a session's record keeps of it
+/// ([`Controller::take_strikes`](super::Controller::take_strikes)).
+///
+/// The audio thread pushes one per strike, detected from force or given as a step,
+/// into a queue of [`STRIKE_LOG`] records that the controller drains; a record that
+/// finds the queue full is counted ([`TelemetrySnapshot::unlogged_strikes`](super::TelemetrySnapshot::unlogged_strikes))
+/// instead, so every strike counted is either in the log or in that count.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StrikeRecord {
+    /// The engine frame it started at: the sample of the output it starts on.
+    pub frame: u64,
+    /// The channel (engine index, from 0).
+    pub channel: u16,
+    /// Strength relative to a nominal step (1.0).
+    pub intensity: f32,
+    /// The bank slot the channel played, if it had a material.
+    pub slot: Option<u16>,
+    /// The sensor time of the reading that crossed the threshold; `None` for an
+    /// explicit step or a reading without one.
+    pub sensor_time: Option<crate::units::Seconds>,
+}
+
+/// Records the strike log holds between two drains: over a minute of a 64-channel tile
+/// at two steps a second, where a session drains it 50 times a second.
+pub const STRIKE_LOG: usize = 8192;

@@ -87,7 +87,7 @@ mod telemetry;
 use std::sync::Arc;
 
 pub use clock::ClockAnchor;
-pub use event::{Event, TimedEvent};
+pub use event::{Event, StrikeRecord, TimedEvent};
 
 use crate::compensation::CompensationError;
 use crate::compensation::chain::CompensationChain;
@@ -157,6 +157,7 @@ pub fn build(
     // drop a retired material on the audio thread.
     let (retire_tx, retire_rx) = rtrb::RingBuffer::new(config.queue_capacity);
     let telemetry = Arc::new(Telemetry::new(config.channels));
+    let (strike_tx, strike_rx) = rtrb::RingBuffer::new(event::STRIKE_LOG);
     if config.spare_slots > usize::from(u16::MAX) - bank.materials.len() {
         return Err(EngineError::InvalidConfig(format!(
             "{} spare slots beyond {} materials: at most 65535 slots in all",
@@ -209,6 +210,7 @@ pub fn build(
         pending: Vec::with_capacity(config.queue_capacity),
         commands: command_rx,
         retired: retire_tx,
+        strike_log: strike_tx,
         telemetry: Arc::clone(&telemetry),
         scratch: vec![0.0; config.max_block],
         peak: 0.0,
@@ -217,6 +219,7 @@ pub fn build(
     let controller = Controller {
         commands: command_tx,
         retired: retire_rx,
+        strike_log: strike_rx,
         telemetry,
         names,
         capacity,

@@ -25,6 +25,7 @@ pub struct Telemetry {
     pub(super) resyncs: AtomicU64,
     pub(super) equalizer_updates: AtomicU64,
     pub(super) equalizer_refused: AtomicU64,
+    pub(super) unlogged_strikes: AtomicU64,
     /// One meter per engine channel, allocated with the engine.
     pub(super) channels: Box<[ChannelMeter]>,
 }
@@ -221,6 +222,12 @@ impl Telemetry {
         })
     }
 
+    /// Frames the engine has rendered, as of its last block.
+    #[must_use]
+    pub fn frames(&self) -> u64 {
+        self.frames.load(Ordering::Relaxed)
+    }
+
     /// The number of channels metered.
     #[must_use]
     pub fn channels(&self) -> usize {
@@ -297,6 +304,7 @@ impl Default for Telemetry {
             resyncs: AtomicU64::new(0),
             equalizer_updates: AtomicU64::new(0),
             equalizer_refused: AtomicU64::new(0),
+            unlogged_strikes: AtomicU64::new(0),
             channels: Box::new([]),
         }
     }
@@ -338,9 +346,16 @@ pub struct TelemetrySnapshot {
     pub equalizer_updates: u64,
     /// Equalizer weights refused: another shape, non-finite, or no equalizer on the channel.
     pub equalizer_refused: u64,
+    /// Strikes that found the strike log full ([`super::StrikeRecord`]): counted, but
+    /// missing from a session's record.
+    pub unlogged_strikes: u64,
 }
 
 impl Telemetry {
+    pub(super) fn count_unlogged_strike(&self) {
+        self.unlogged_strikes.fetch_add(1, Ordering::Relaxed);
+    }
+
     pub(super) fn count_strike(&self, channel: usize) {
         self.strikes.fetch_add(1, Ordering::Relaxed);
         if let Some(m) = self.channels.get(channel) {
@@ -387,6 +402,7 @@ impl Telemetry {
             resyncs: self.resyncs.load(Ordering::Relaxed),
             equalizer_updates: self.equalizer_updates.load(Ordering::Relaxed),
             equalizer_refused: self.equalizer_refused.load(Ordering::Relaxed),
+            unlogged_strikes: self.unlogged_strikes.load(Ordering::Relaxed),
         }
     }
 }

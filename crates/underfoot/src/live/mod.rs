@@ -48,6 +48,7 @@
 //! | `output.rs` | starting the output: an audio device, or the paced pseudo-device into a WAV file or nowhere |
 //! | `paced.rs` | [`PacedDevice`]: the engine at real-time pace without a sound card |
 //! | `remote.rs` | [`Remote`]: steering a running session from another thread (a control panel) |
+//! | [`record`] | the session's record: force, strikes, changes, markers, status and output, in one folder |
 //! | `tests.rs` | sessions run end to end on short walks |
 //!
 //! # Example
@@ -95,6 +96,7 @@ pub mod adapt;
 mod input;
 mod output;
 pub mod paced;
+pub mod record;
 mod remote;
 mod session;
 #[cfg(test)]
@@ -102,6 +104,7 @@ mod tests;
 
 pub use output::{OutputInfo, OutputReport};
 pub use paced::{PacedDevice, PacedReport};
+pub use record::{EndReason, Marker, RecordCounts, RecordError, RecordSettings};
 pub use remote::{Remote, RemoteCommand, RemoteError};
 pub use session::{
     InterfaceSummary, RunningSession, SerialSettings, Session, SessionConfig, SessionInput, Status,
@@ -185,6 +188,9 @@ pub enum LiveError {
         /// The engine's channels.
         channels: usize,
     },
+    /// The session's record cannot be made, or failed.
+    #[error(transparent)]
+    Record(#[from] RecordError),
     /// The equalizer's weights or the adaptation's settings are refused.
     #[error("the equalizer cannot adapt")]
     Adapt(#[source] crate::compensation::CompensationError),

@@ -16,6 +16,7 @@ use crate::units::{SampleRate, Seconds};
 use super::LiveError;
 use super::adapt::DriveTap;
 use super::paced::{PacedDevice, PacedReport};
+use super::record::OutputTap;
 
 /// How often a `wav:` recording is brought up to date on disk: a killed session loses at
 /// most this much (see [`crate::io::wav`], *Live recordings*).
@@ -111,6 +112,8 @@ pub(super) struct Start<'a> {
     pub rate: SampleRate,
     /// The adaptation's tap on the drive (an audio output only).
     pub tap: Option<DriveTap>,
+    /// The session record's copy of the output.
+    pub record: Option<OutputTap>,
 }
 
 impl Output {
@@ -124,9 +127,18 @@ impl Output {
             channels,
             rate,
             tap,
+            record,
         } = start;
         if let OutputSpec::Audio { device } = spec {
-            return start_audio(device.as_deref(), host, buffer, channels, rate, engine, tap);
+            return start_audio(
+                device.as_deref(),
+                host,
+                buffer,
+                channels,
+                rate,
+                engine,
+                (tap, record),
+            );
         }
         debug_assert!(
             tap.is_none(),
@@ -145,7 +157,10 @@ impl Output {
         };
         let block = buffer.unwrap_or(DEFAULT_BLOCK).clamp(16, 8192) as usize;
         let stop = Arc::new(AtomicBool::new(false));
-        let device = PacedDevice::new(engine, sink, channels, rate, block);
+        let mut device = PacedDevice::new(engine, sink, channels, rate, block);
+        if let Some(record) = record {
+            device = device.with_record(record);
+        }
         let late = device.late_counter();
         let thread = {
             let stop = Arc::clone(&stop);
@@ -218,7 +233,7 @@ fn start_audio(
     channels: usize,
     rate: SampleRate,
     mut engine: Engine,
-    mut tap: Option<DriveTap>,
+    (mut tap, mut record): (Option<DriveTap>, Option<OutputTap>),
 ) -> Result<(Output, OutputInfo), LiveError> {
     use crate::io::audio::{AudioConfig, AudioOutput};
     let config = AudioConfig {
@@ -233,6 +248,9 @@ fn start_audio(
         engine.process(out, device_channels);
         if let Some(tap) = &mut tap {
             tap.push(out, device_channels);
+        }
+        if let Some(record) = &mut record {
+            record.push(out, device_channels);
         }
     })?;
     let info = OutputInfo::Audio(output.info().clone());
@@ -256,7 +274,7 @@ fn start_audio(
     _channels: usize,
     _rate: SampleRate,
     _engine: Engine,
-    _tap: Option<DriveTap>,
+    _taps: (Option<DriveTap>, Option<OutputTap>),
 ) -> Result<(Output, OutputInfo), LiveError> {
     Err(LiveError::NoAudio)
 }

@@ -26,10 +26,14 @@ use crate::io::IoError;
 use crate::io::wav::{WavSink, WavSummary};
 use crate::units::SampleRate;
 
+use super::record::OutputTap;
+
 /// The engine, a buffer of one period, its clock, and where the buffers go.
 pub struct PacedDevice {
     engine: Engine,
     sink: Option<WavSink>,
+    /// A session record's copy of every buffer.
+    record: Option<OutputTap>,
     channels: usize,
     buffer: Vec<f32>,
     period: Duration,
@@ -80,6 +84,7 @@ impl PacedDevice {
         Self {
             engine,
             sink,
+            record: None,
             channels,
             buffer: vec![0.0; block * channels],
             period: Duration::from_secs_f64(block as f64 / rate.hz()),
@@ -88,6 +93,13 @@ impl PacedDevice {
             late: 0,
             late_shared: Arc::new(AtomicU64::new(0)),
         }
+    }
+
+    /// The device, with every buffer copied to a session's record too.
+    #[must_use]
+    pub fn with_record(mut self, tap: OutputTap) -> Self {
+        self.record = Some(tap);
+        self
     }
 
     /// The count of late wake-ups, readable from another thread while the device runs.
@@ -109,6 +121,9 @@ impl PacedDevice {
     /// Writing to the WAV file failed.
     pub fn render(&mut self) -> Result<Duration, IoError> {
         self.engine.process(&mut self.buffer, self.channels);
+        if let Some(record) = &mut self.record {
+            record.push(&self.buffer, self.channels);
+        }
         if let Some(sink) = &mut self.sink {
             sink.write_interleaved(&self.buffer)?;
         }

@@ -13,6 +13,8 @@ use crate::engine::{Controller, EngineError, Event, TimedEvent};
 use crate::synthesis::PreparedMaterial;
 use crate::units::Decibels;
 
+use super::record::{Marker, Recorder};
+
 /// What a [`Remote`] asks of a running session.
 #[derive(Debug)]
 #[non_exhaustive]
@@ -34,6 +36,9 @@ pub enum RemoteCommand {
     },
     /// Add a prepared material to one of the bank's spare slots; the reply is its slot.
     Add(Box<PreparedMaterial>),
+    /// Put a marker into the session's record ([`super::record`]); refused when the
+    /// session is not recorded.
+    Marker(Marker),
     /// End the session: the output fades out and the session reports, as on Ctrl-C.
     Stop,
 }
@@ -96,12 +101,37 @@ impl Remote {
     }
 }
 
-/// Carries out every request waiting, on the session's thread; `true` if one asked the
-/// session to stop.
-pub(super) fn serve(requests: &mpsc::Receiver<Request>, controller: &mut Controller) -> bool {
+/// Carries out every request waiting, on the session's thread, and records each change
+/// it makes; `true` if one asked the session to stop.
+pub(super) fn serve(
+    requests: &mpsc::Receiver<Request>,
+    controller: &mut Controller,
+    mut recorder: Option<&mut Recorder>,
+) -> bool {
     let mut stop = false;
     while let Ok(Request { command, reply }) = requests.try_recv() {
-        let channels = controller.telemetry_handle().channels();
+        let telemetry = controller.telemetry_handle();
+        let channels = telemetry.channels();
+        let frame = telemetry.frames();
+        let change = match &command {
+            RemoteCommand::Material { channel, slot } => Some((
+                "material",
+                serde_json::json!({
+                    "channel": u32::from(*channel) + 1,
+                    "slot": slot,
+                    "material": controller.material_names().get(usize::from(*slot)),
+                    "from": "remote",
+                }),
+            )),
+            RemoteCommand::Trim { channel, gain } => Some((
+                "trim",
+                serde_json::json!({ "channel": u32::from(*channel) + 1, "trim_db": gain.0 }),
+            )),
+            RemoteCommand::Add(m) => {
+                Some(("material_added", serde_json::json!({ "material": m.name })))
+            }
+            RemoteCommand::Marker(_) | RemoteCommand::Stop => None,
+        };
         let result = match command {
             RemoteCommand::Material { channel, slot } => {
                 if usize::from(channel) >= channels {
@@ -128,11 +158,27 @@ pub(super) fn serve(requests: &mpsc::Receiver<Request>, controller: &mut Control
                 .add_material(*material)
                 .map(Some)
                 .map_err(RemoteError::from),
+            RemoteCommand::Marker(marker) => match (&mut recorder, marker.check()) {
+                (_, Err(e)) => Err(RemoteError::Refused(e.to_string())),
+                (None, Ok(())) => Err(RemoteError::Refused(
+                    "this session is not recorded (--record DIR): a marker has nowhere to go"
+                        .into(),
+                )),
+                (Some(r), Ok(())) => r
+                    .marker(frame, &marker)
+                    .map(|()| None)
+                    .map_err(|e| RemoteError::Refused(format!("the record failed: {e}"))),
+            },
             RemoteCommand::Stop => {
                 stop = true;
                 Ok(None)
             }
         };
+        if let (Ok(_), Some((kind, fields)), Some(r)) = (&result, change, &mut recorder) {
+            // A record that cannot take a change fails at its next write, which the
+            // session reports: the change itself was made.
+            let _ = r.event(frame, kind, fields);
+        }
         // The caller may have given up waiting: nothing to tell then.
         let _ = reply.send(result);
     }

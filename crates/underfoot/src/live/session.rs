@@ -9,7 +9,8 @@ use std::time::{Duration, Instant};
 use crate::atomic_file::OutputFile;
 use crate::compensation::equalizer::SpectralWeights;
 use crate::engine::{
-    self, ChannelLevels, Controller, EngineConfig, MaterialBank, TelemetrySnapshot, TimedEvent,
+    self, ChannelLevels, Controller, EngineConfig, Event, MaterialBank, TelemetrySnapshot,
+    TimedEvent,
 };
 use crate::interface::config::InterfaceConfig;
 use crate::io::prosthetic::{ProstheticHost, ProstheticStats};
@@ -22,6 +23,7 @@ use super::LiveError;
 use super::adapt::{AdaptLoop, AdaptSettings, AdaptStatus, DriveTap};
 use super::input::{self, Input};
 use super::output::{Output, OutputInfo, OutputReport, Start};
+use super::record::{EndReason, RecordCounts, RecordSettings, RecordStart, Recorder};
 use super::remote::{self, Remote, Request};
 
 /// How long a poll of the input waits for readings, and the loop's period when it has
@@ -96,6 +98,8 @@ pub struct SessionConfig {
     /// Adapt the equalizer while the user walks, from an accelerometer on an audio input
     /// ([`super::adapt`]); needs an audio output and an equalizer.
     pub adapt: Option<AdaptSettings>,
+    /// Record the session into a folder ([`super::record`]).
+    pub record: Option<RecordSettings>,
 }
 
 impl SessionConfig {
@@ -113,6 +117,7 @@ impl SessionConfig {
             exit_on_disconnect: false,
             reads: Vec::new(),
             adapt: None,
+            record: None,
         }
     }
 
@@ -173,6 +178,13 @@ impl Session {
     pub fn open(config: &SessionConfig) -> Result<Self, LiveError> {
         // The output file is checked before any input is opened.
         let wav = config.check_wav_output()?;
+        if let Some(record) = &config.record {
+            let mut inputs = config.inputs();
+            if let OutputSpec::Wav { path } = &config.output {
+                inputs.push(path);
+            }
+            record.check(&inputs)?;
+        }
         let opened = input::open(&config.input, &config.serial)?;
         Ok(Self {
             config: config.clone(),
@@ -221,7 +233,40 @@ impl Session {
             None => None,
         };
         let input = self.input.bind_osc(bank.names(), config.channels)?;
+        let names = bank.names();
         let (mut controller, engine) = engine::build(config, bank, slots)?;
+        let (recorder, record_tap) = match &self.config.record {
+            Some(settings) => {
+                let engine_settings = serde_json::json!({
+                    "gain_db": config.gain.0,
+                    "ceiling_db": config.ceiling.0,
+                    "sensor_latency_s": config.sensor_latency.0,
+                    "seed": config.seed,
+                });
+                let (recorder, tap) = Recorder::create(
+                    settings,
+                    &RecordStart {
+                        rate: config.rate,
+                        channels: config.channels,
+                        materials: (0..config.channels)
+                            .map(|c| {
+                                slots
+                                    .get(c)
+                                    .and_then(|s| names.get(usize::from(*s)))
+                                    .cloned()
+                                    .unwrap_or_default()
+                            })
+                            .collect(),
+                        input: input_text(&self.config.input),
+                        output: self.config.output.to_string(),
+                        sensor_rate: config.sensor_rate.0,
+                        engine: &engine_settings,
+                    },
+                )?;
+                (Some(recorder), Some(tap))
+            }
+            None => (None, None),
+        };
         let (adapt, tap) = match adapt {
             Some((settings, weights)) => {
                 let (running, tap) =
@@ -239,6 +284,7 @@ impl Session {
                 channels: config.channels,
                 rate: config.rate,
                 tap,
+                record: record_tap,
             },
             engine,
         )?;
@@ -259,7 +305,22 @@ impl Session {
             ends: self.ends,
             duration: self.config.duration,
             exit_on_disconnect: self.config.exit_on_disconnect,
+            recorder,
         })
+    }
+}
+
+/// The input as the command line gives it, for a record's manifest.
+fn input_text(input: &SessionInput) -> String {
+    match input {
+        SessionInput::Spec(InputSpec::Replay { file, speed }) => {
+            format!("replay:{}@{speed}", file.display())
+        }
+        // The walk's settings in full: the spec's text is the caller's.
+        SessionInput::Spec(InputSpec::Gait(gait)) => format!("gait: {gait:?}"),
+        SessionInput::Spec(InputSpec::Serial { port }) => format!("serial:{port}"),
+        SessionInput::Spec(InputSpec::Osc { addr }) => format!("osc:{addr}"),
+        SessionInput::Interface(path) => format!("interface:{}", path.display()),
     }
 }
 
@@ -384,6 +445,7 @@ pub struct RunningSession {
     ends: bool,
     duration: Option<Seconds>,
     exit_on_disconnect: bool,
+    recorder: Option<Recorder>,
 }
 
 impl std::fmt::Debug for RunningSession {
@@ -426,6 +488,10 @@ pub struct Summary {
     pub lost: Option<LinkEvent>,
     /// What the adaptation did, and the weights it ended with, if it ran.
     pub adapt: Option<(AdaptStatus, SpectralWeights)>,
+    /// Why it ended.
+    pub ended: EndReason,
+    /// What the session's record holds, if it was recorded.
+    pub record: Option<RecordCounts>,
 }
 
 /// What a running session is doing now, given to
@@ -509,26 +575,34 @@ impl RunningSession {
             ..Status::default()
         };
         let mut last_status = started;
+        let mut last_recorded = started;
         let deadline = self
             .duration
             .map(|d| started + Duration::from_secs_f64(d.0.max(0.0)));
         let mut queue_full = 0u64;
         let mut ended_at = None;
+        let mut reason = EndReason::Stopped;
         // Set when the input was lost and the session is to end on it: it still fades
         // out and reports.
         let mut lost: Option<LinkEvent> = None;
         let controller = &mut self.controller;
         let source = self.source.events();
+        let mut recorder = self.recorder.take();
         // A caller that wants statuses more often than the input's poll period (a
         // panel's meters) gets the loop at its pace: shorter waits on the input, never
         // below 5 ms.
         let poll = POLL.min(every.max(Duration::from_millis(5)));
-        loop {
-            if stop.load(Ordering::SeqCst) || deadline.is_some_and(|d| Instant::now() >= d) {
-                break;
+        let outcome = loop {
+            if stop.load(Ordering::SeqCst) {
+                break Ok(());
             }
-            if last_status.elapsed() >= every {
-                last_status = Instant::now();
+            if deadline.is_some_and(|d| Instant::now() >= d) {
+                reason = EndReason::Duration;
+                break Ok(());
+            }
+            let status_due = last_status.elapsed() >= every;
+            let record_due = recorder.is_some() && last_recorded.elapsed() >= RECORD_STATUS;
+            if status_due || record_due {
                 status.elapsed = started.elapsed();
                 status.telemetry = controller.telemetry();
                 for (c, levels) in status.channels.iter_mut().enumerate() {
@@ -541,25 +615,72 @@ impl RunningSession {
                 if status.materials.len() != controller.material_names().len() {
                     status.materials = controller.material_names().to_vec();
                 }
+                // One status serves both, so that neither takes the other's meter
+                // interval (peaks and RMS are taken, not read).
+                last_status = Instant::now();
                 on_status(&status);
+                if let Some(r) = &mut recorder {
+                    last_recorded = last_status;
+                    if let Err(e) = r.status(&status) {
+                        break Err(e.into());
+                    }
+                }
             }
-            if remote::serve(&self.requests, controller) {
-                break;
+            if remote::serve(&self.requests, controller, recorder.as_mut()) {
+                reason = EndReason::RemoteStop;
+                break Ok(());
+            }
+            if let Some(r) = &mut recorder
+                && let Err(e) = record_strikes(r, controller)
+            {
+                break Err(e);
             }
             if let Some(t) = ended_at {
                 if Instant::now().duration_since(t) >= RING_OUT {
-                    break;
+                    reason = EndReason::InputEnded;
+                    break Ok(());
                 }
                 thread::sleep(poll);
                 continue;
             }
             let polled = Instant::now();
+            let mut record_failed = None;
             let state = source.poll(poll, &mut |event| {
+                if let Some(r) = &mut recorder
+                    && record_failed.is_none()
+                {
+                    let recorded = match event {
+                        Event::Force { channel, reading } => r.force(channel, &reading),
+                        Event::Material { channel, slot } => r.event(
+                            meters.frames(),
+                            "material",
+                            serde_json::json!({
+                                "channel": u32::from(channel) + 1,
+                                "slot": slot,
+                                "from": "input",
+                            }),
+                        ),
+                        Event::Step { .. } => Ok(()),
+                    };
+                    record_failed = recorded.err();
+                }
                 if controller.send(TimedEvent::now(event)).is_err() {
                     queue_full += 1;
                 }
-            })?;
+            });
+            let state = match (state, record_failed) {
+                (Err(e), _) => break Err(e.into()),
+                (_, Some(e)) => break Err(e.into()),
+                (Ok(state), None) => state,
+            };
             while let Some(event) = source.link_event() {
+                if let Some(r) = &mut recorder {
+                    let _ = r.event(
+                        meters.frames(),
+                        "link",
+                        serde_json::json!({ "what": event.to_string() }),
+                    );
+                }
                 if self.exit_on_disconnect && matches!(event, LinkEvent::Lost { .. }) {
                     lost = Some(event);
                 } else {
@@ -567,7 +688,8 @@ impl RunningSession {
                 }
             }
             if lost.is_some() {
-                break;
+                reason = EndReason::InputLost;
+                break Ok(());
             }
             if state == SourceState::Ended && self.ends {
                 ended_at = Some(Instant::now());
@@ -580,16 +702,42 @@ impl RunningSession {
                 running.adapt.poll(controller);
             }
             controller.collect();
-            self.output.check()?;
+            if let Err(e) = self.output.check() {
+                break Err(e);
+            }
+            if let Some(r) = &mut recorder
+                && let Err(e) = r.poll()
+            {
+                break Err(e.into());
+            }
+        };
+        if let Err(e) = outcome {
+            // The record keeps what it has, and says it ended on a failure.
+            if let Some(r) = recorder {
+                let _ = controller.stop();
+                let telemetry = controller.telemetry();
+                let _ = r.finish(telemetry.frames, EndReason::Failed, &telemetry);
+            }
+            return Err(e);
         }
         controller.stop()?;
         let fade_deadline = Instant::now() + FADE_WAIT;
         while !controller.telemetry().stopped && Instant::now() < fade_deadline {
+            if let Some(r) = &mut recorder {
+                r.poll()?;
+            }
             thread::sleep(Duration::from_millis(5));
         }
         let output = self.output.finish()?;
         let adapt = self.adapt.map(RunningAdapt::finish);
         let telemetry = controller.telemetry();
+        let record = match recorder {
+            Some(mut r) => {
+                record_strikes(&mut r, controller)?;
+                Some(r.finish(telemetry.frames, reason, &telemetry)?)
+            }
+            None => None,
+        };
         let input = source.stats();
         let interface = match self.source {
             Source::Interface(host, sim) => Some(InterfaceSummary {
@@ -607,6 +755,22 @@ impl RunningSession {
             output,
             lost,
             adapt,
+            ended: reason,
+            record,
         })
     }
+}
+
+/// How often a recorded session writes its status.
+const RECORD_STATUS: Duration = Duration::from_secs(1);
+
+/// Moves the strikes the engine has logged into the record.
+fn record_strikes(recorder: &mut Recorder, controller: &mut Controller) -> Result<(), LiveError> {
+    // Taken first: the names are the controller's too.
+    let mut strikes = Vec::new();
+    controller.take_strikes(|strike| strikes.push(*strike));
+    for strike in &strikes {
+        recorder.strike(strike, controller.material_names())?;
+    }
+    Ok(())
 }

@@ -260,3 +260,142 @@ fn a_remote_steers_a_running_session_from_another_thread() {
     assert_eq!(ch.slot, Some(materials as u16));
     assert!((ch.trim - 0.501).abs() < 0.001, "{ch:?}");
 }
+
+/// A recorded walk on two feet, with markers from another thread: the record holds every
+/// reading (the same as the walk generated offline), every strike the engine counted,
+/// every marker in order, and every output frame.
+#[test]
+#[ignore = "slow tier: paced in real time"]
+fn a_recorded_walk_keeps_every_reading_strike_and_marker() {
+    use crate::force::gait::{GaitConfig, generate};
+    use crate::force::track::ForceTrack;
+
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir.path().join("session");
+    let spec = "steps=4,channels=2,lead_in=0.1,tail=0.1";
+    let mut config = SessionConfig::new(
+        SessionInput::Spec(format!("gait:{spec}").parse().unwrap()),
+        OutputSpec::Null,
+    );
+    config.record = Some(RecordSettings::new(&folder));
+    let session = Session::open(&config).unwrap();
+    let (engine, bank, slots) = engine(2);
+    let running = session.start(&engine, bank, &slots).unwrap();
+    let remote = running.remote();
+    let marking = std::thread::spawn(move || {
+        for trial in 1..=3 {
+            std::thread::sleep(std::time::Duration::from_millis(300));
+            let marker = Marker {
+                trial: Some(trial),
+                participant: Some("P07".into()),
+                ..Marker::new(format!("trial {trial}"))
+            };
+            remote.send(RemoteCommand::Marker(marker)).unwrap();
+        }
+        // Refused, with a reason, and not recorded.
+        let refused = remote.send(RemoteCommand::Marker(Marker::new("two\nlines")));
+        assert!(
+            format!("{refused:?}").contains("control character"),
+            "{refused:?}"
+        );
+    });
+    let summary = running
+        .run(&AtomicBool::new(false), |e| panic!("{e}"))
+        .unwrap();
+    marking.join().unwrap();
+    assert_eq!(summary.ended, EndReason::InputEnded);
+    let counts = summary.record.clone().unwrap();
+
+    // Every reading: the very track the walk is, read back by the track reader.
+    let recorded = ForceTrack::read(&folder.join("force.csv")).unwrap();
+    let gait = generate(&GaitConfig::from_spec(spec).unwrap()).unwrap();
+    let walk = gait.track;
+    let steps: usize = gait.strikes.iter().map(Vec::len).sum();
+    assert_eq!(recorded.rows.len(), walk.rows.len());
+    assert_eq!(counts.force_rows as usize, walk.rows.len());
+    assert_eq!(counts.force_out_of_order + counts.force_mismatched, 0);
+    for (r, w) in recorded.rows.iter().zip(&walk.rows) {
+        assert!((r.time.0 - w.time.0).abs() < 1e-12);
+        for (a, b) in r.readings.iter().zip(&w.readings) {
+            assert_eq!(a.as_slice(), b.as_slice());
+        }
+    }
+
+    // Every strike the engine counted, on its channel, at frames that only increase.
+    let strikes = std::fs::read_to_string(folder.join("strikes.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = strikes
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(rows.len() as u64, summary.telemetry.strikes);
+    assert_eq!(summary.telemetry.strikes as usize, steps);
+    assert_eq!(summary.telemetry.unlogged_strikes, 0);
+    for row in &rows {
+        assert!(row[2] == "1" || row[2] == "2", "{row:?}");
+        assert_eq!(row[4], "gravel");
+        let frame: u64 = row[1].parse().unwrap();
+        let time: f64 = row[0].parse().unwrap();
+        assert!((time - frame as f64 / f64::from(RATE.0)).abs() < 1e-9);
+    }
+
+    // The markers, in order, with their fields; the start and the end around them.
+    let events = std::fs::read_to_string(folder.join("events.jsonl")).unwrap();
+    let events: Vec<serde_json::Value> = events
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(events.first().unwrap()["kind"], "start");
+    assert_eq!(events.last().unwrap()["kind"], "end");
+    assert_eq!(events.last().unwrap()["reason"], "input_ended");
+    let markers: Vec<&serde_json::Value> =
+        events.iter().filter(|e| e["kind"] == "marker").collect();
+    assert_eq!(markers.len(), 3);
+    assert_eq!(counts.markers, 3);
+    for (i, m) in markers.iter().enumerate() {
+        assert_eq!(m["trial"], i as u64 + 1);
+        assert_eq!(m["participant"], "P07");
+        assert_eq!(m["text"], format!("trial {}", i + 1));
+    }
+    let times: Vec<f64> = markers.iter().map(|m| m["t"].as_f64().unwrap()).collect();
+    assert!(times.windows(2).all(|w| w[1] - w[0] > 0.2), "{times:?}");
+
+    // Every output frame, as many as the engine rendered.
+    let wav = hound::WavReader::open(folder.join("output.wav")).unwrap();
+    assert_eq!(wav.spec().channels, 2);
+    assert_eq!(u64::from(wav.duration()), summary.telemetry.frames);
+    assert_eq!(counts.output_frames, summary.telemetry.frames);
+    assert_eq!(counts.output_frames_dropped, 0);
+
+    // The manifest, ended.
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(folder.join("manifest.json")).unwrap())
+            .unwrap();
+    assert_eq!(manifest["version"], record::RECORD_VERSION);
+    assert_eq!(manifest["channels"][1]["material"], "gravel");
+    assert_eq!(manifest["ended"]["reason"], "input_ended");
+    assert_eq!(manifest["ended"]["strikes"], steps);
+    assert!(manifest["started"]["utc"].as_str().unwrap().ends_with('Z'));
+    let status = std::fs::read_to_string(folder.join("status.jsonl")).unwrap();
+    assert!(status.lines().count() >= 2, "{status}");
+}
+
+#[test]
+fn a_record_never_goes_into_a_folder_that_holds_something() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("notes.txt"), "participant 3").unwrap();
+    let mut config = SessionConfig::new(walk(1), OutputSpec::Null);
+    config.record = Some(RecordSettings::new(dir.path()));
+    let e = Session::open(&config).unwrap_err();
+    assert!(chain(&e).contains("not empty"), "{}", chain(&e));
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("notes.txt")).unwrap(),
+        "participant 3"
+    );
+    config.record = Some(RecordSettings::new(dir.path().join("notes.txt")));
+    let e = Session::open(&config).unwrap_err();
+    assert!(chain(&e).contains("not a folder"), "{}", chain(&e));
+    config.record = Some(RecordSettings::new(dir.path().join("no/such/parent")));
+    let e = Session::open(&config).unwrap_err();
+    assert!(chain(&e).contains("parent"), "{}", chain(&e));
+}

@@ -68,6 +68,18 @@ pub const STEP_WINDOW: Seconds = Seconds(0.5);
 /// playback level keeps its nominal step under it (`material::level`).
 pub const DEFAULT_CEILING: Decibels = Decibels(-6.0);
 
+/// The loudest level that still counts as silence: half a step of a 24-bit converter,
+/// which the widest common output rounds to zero. Filter and limiter tails decay through
+/// tiny non-zero values (-208 dBFS was seen after a step died away); they are not sound,
+/// and every report (status, record, summary) shows them as silence, as an exact zero.
+pub const SILENT_LEVEL: f32 = 1.0 / (1u32 << 24) as f32;
+
+/// A level in dBFS, `None` for silence ([`SILENT_LEVEL`] or below, or not finite).
+#[must_use]
+pub fn level_dbfs(amplitude: f32) -> Option<f64> {
+    (amplitude > SILENT_LEVEL && amplitude.is_finite()).then(|| 20.0 * f64::from(amplitude).log10())
+}
+
 /// `ceiling` as the `f32` amplitude a limiter holds samples to: the largest `f32` not above
 /// the exact value. Rounded to the nearest `f32`, a ceiling such as -4 dB (0.630957344...)
 /// becomes 0.63095737, and a sample held to it is 2.8e-7 dB over what the user set; the

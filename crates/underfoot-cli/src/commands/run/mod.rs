@@ -28,9 +28,10 @@ use underfoot::document;
 use underfoot::io::spec::{self, InputSpec, OutputSpec, SpecError};
 use underfoot::io::{Backoff, LinkEvent};
 use underfoot::live::adapt::AdaptSettings;
+use underfoot::live::record::{self, Marker};
 use underfoot::live::{
-    InterfaceSummary, LiveError, OutputInfo, OutputReport, RunningSession, SerialSettings, Session,
-    SessionConfig, SessionInput, Status, Summary,
+    InterfaceSummary, LiveError, OutputInfo, OutputReport, RecordSettings, RemoteCommand,
+    RunningSession, SerialSettings, Session, SessionConfig, SessionInput, Status, Summary,
 };
 use underfoot::units::Seconds;
 
@@ -134,6 +135,18 @@ pub struct RunArgs {
     /// from next time).
     #[arg(long = "adapt-out", value_name = "FILE.json", requires = "adapt")]
     adapt_out: Option<PathBuf>,
+    /// Record the session into the folder DIR (new, or empty): manifest.json, every force
+    /// reading (force.csv), every strike (strikes.csv), every change and marker
+    /// (events.jsonl), the status a second (status.jsonl) and the output (output.wav),
+    /// written as it goes. With it, each line typed on standard input is a marker (plain
+    /// text, or a JSON object {"text", "trial", "participant", "condition"}); on a
+    /// terminal an empty line stops. `underfoot session show DIR` reads it.
+    #[arg(long, value_name = "DIR")]
+    record: Option<PathBuf>,
+    /// The most the record may hold, in MiB; at the bound the force, status and output
+    /// stop and an event says so (strikes, markers and changes go on).
+    #[arg(long = "record-max-mb", value_name = "MIB", default_value_t = 4096, requires = "record", value_parser = clap::value_parser!(u64).range(1..=1_048_576))]
+    record_max_mb: u64,
     #[command(flatten)]
     synth: SynthArgs,
 }
@@ -278,8 +291,53 @@ impl RunArgs {
                 input_channel: self.adapt_input.unwrap_or(0),
                 ..AdaptSettings::default()
             }),
+            record: self.record_settings()?,
             ..SessionConfig::new(input, self.output())
         })
+    }
+
+    /// `--record`'s settings: the folder, its bound, and what the manifest says of the
+    /// command (its line, the library's hash, the synthesis settings).
+    fn record_settings(&self) -> anyhow::Result<Option<RecordSettings>> {
+        let Some(dir) = &self.record else {
+            return Ok(None);
+        };
+        let library = match &self.synth.library {
+            Some(path) => {
+                let bytes = std::fs::read(path)
+                    .with_context(|| format!("reading the library {}", path.display()))?;
+                (path.display().to_string(), record::sha256_hex(&bytes))
+            }
+            None => {
+                let text = serde_json::to_vec(&underfoot::material::builtin::builtin())?;
+                ("built-in".to_owned(), record::sha256_hex(&text))
+            }
+        };
+        let s = &self.synth;
+        Ok(Some(RecordSettings {
+            max_bytes: self.record_max_mb << 20,
+            command_line: std::env::args().collect(),
+            library,
+            input: Some(match (&self.interface, &self.input) {
+                (Some(path), _) => format!("interface:{}", path.display()),
+                (None, Some(input)) => input.text.clone(),
+                (None, None) => DEFAULT_INPUT.to_owned(),
+            }),
+            settings: serde_json::json!({
+                "materials": self.material,
+                "model": format!("{:?}", s.model),
+                "drive": format!("{:?}", s.drive),
+                "excitation": format!("{:?}", s.excitation),
+                "perturbation": s.perturbation,
+                "weight_kg": s.weight_kg,
+                "step_threshold_n": s.step_threshold_n,
+                "sensor_rate_hz": s.sensor_rate,
+                "eq": s.eq.as_ref().map(|p| p.display().to_string()),
+                "gain_db": s.gain_db,
+                "ceiling_db": s.ceiling_db,
+            }),
+            ..RecordSettings::new(dir)
+        }))
     }
 }
 
@@ -416,7 +474,9 @@ pub fn run_session(
         o.started(&running, &setup);
     }
 
-    if std::io::stdin().is_terminal() {
+    if args.record.is_some() {
+        read_markers(&running, stop);
+    } else if std::io::stdin().is_terminal() {
         let stop = Arc::clone(stop);
         eprintln!("underfoot: running; press Enter or Ctrl-C to stop");
         thread::spawn(move || {
@@ -518,6 +578,54 @@ pub fn run_session(
     }
 }
 
+/// Reads markers from standard input for a recorded session, on a thread of its own:
+/// each line is one (plain text, or a JSON [`Marker`]); on a terminal, an empty line
+/// stops the session, as Enter does without a record.
+fn read_markers(running: &RunningSession, stop: &Arc<AtomicBool>) {
+    let terminal = std::io::stdin().is_terminal();
+    if terminal {
+        eprintln!(
+            "underfoot: recording; type a marker and Enter to mark the moment, an empty line \
+             or Ctrl-C to stop"
+        );
+    }
+    let remote = running.remote();
+    let stop = Arc::clone(stop);
+    thread::spawn(move || {
+        for line in std::io::stdin().lines() {
+            let Ok(line) = line else { break };
+            let line = line.trim();
+            if line.is_empty() {
+                if terminal {
+                    stop.store(true, Ordering::SeqCst);
+                    break;
+                }
+                continue;
+            }
+            let marker = if line.starts_with('{') {
+                match serde_json::from_str::<Marker>(line) {
+                    Ok(m) => m,
+                    Err(e) => {
+                        eprintln!(
+                            "underfoot: marker refused: {e} (a JSON marker has \
+                                   \"text\" and optionally \"trial\", \"participant\", \
+                                   \"condition\")"
+                        );
+                        continue;
+                    }
+                }
+            } else {
+                Marker::new(line)
+            };
+            match remote.send(RemoteCommand::Marker(marker)) {
+                Ok(_) => {}
+                Err(underfoot::live::RemoteError::Ended) => break,
+                Err(e) => eprintln!("underfoot: {e}"),
+            }
+        }
+    });
+}
+
 /// Says on stderr what happened to the input's device (a loss that ends the session is
 /// the error it ends with instead).
 fn report_link(event: &LinkEvent) {
@@ -567,6 +675,29 @@ fn report(summary: &Summary) -> String {
         ),
         None => String::new(),
     };
+    let record = summary
+        .record
+        .as_ref()
+        .map(|r| {
+            format!(
+                "record: {} force row(s), {} strike(s), {} marker(s), {} output frame(s){}{}\n",
+                r.force_rows,
+                r.strikes,
+                r.markers,
+                r.output_frames,
+                if r.output_frames_dropped > 0 {
+                    format!(", {} output frame(s) DROPPED", r.output_frames_dropped)
+                } else {
+                    String::new()
+                },
+                if r.full {
+                    "; it reached --record-max-mb"
+                } else {
+                    ""
+                }
+            )
+        })
+        .unwrap_or_default();
     let link = if s.disconnects > 0 {
         format!(
             "link: lost {} time(s), reconnected {} time(s)\n",
@@ -588,7 +719,7 @@ fn report(summary: &Summary) -> String {
     format!(
         "ran {:.1} s: {} strike(s), peak {} dBFS, {} sample(s) limited, {} non-finite \
          silenced, {} watchdog fade(s)\ninput: {} event(s), {} rejected, {} byte(s) skipped, \
-         {} dropped (queue full)\n{link}{clock}{interface}{adapt}{}\n",
+         {} dropped (queue full)\n{link}{clock}{interface}{adapt}{record}{}\n",
         summary.elapsed.as_secs_f64(),
         t.strikes,
         status::peak_text(t.peak),

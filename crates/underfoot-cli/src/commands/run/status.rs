@@ -60,16 +60,10 @@ impl Paced {
     }
 }
 
-/// The loudest peak that still counts as silence: half a step of a 24-bit converter, which
-/// the widest common output rounds to zero. Filter and limiter tails decay through tiny
-/// non-zero values (-208 dBFS was seen in JSON after a step died away); they are not sound
-/// and are shown as silence, the same way as an exact zero.
-const SILENT_PEAK: f64 = 1.0 / (1u64 << 24) as f64;
-
-/// A level in dBFS for display, `None` (`null` in JSON, `-inf` for a person) for silence.
+/// A level in dBFS for display, `None` (`null` in JSON, `-inf` for a person) for silence
+/// (the library's rule, [`underfoot::safety::SILENT_LEVEL`]).
 fn dbfs(peak: f32) -> Option<f64> {
-    let peak = f64::from(peak);
-    (peak > SILENT_PEAK).then(|| 20.0 * peak.log10())
+    underfoot::safety::level_dbfs(peak)
 }
 
 /// A peak for a person, in dBFS to one decimal, `-inf` for silence: the one way the status
