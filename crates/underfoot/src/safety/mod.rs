@@ -77,7 +77,8 @@ pub const SILENT_LEVEL: f32 = 1.0 / (1u32 << 24) as f32;
 /// A level in dBFS, `None` for silence ([`SILENT_LEVEL`] or below, or not finite).
 #[must_use]
 pub fn level_dbfs(amplitude: f32) -> Option<f64> {
-    (amplitude > SILENT_LEVEL && amplitude.is_finite()).then(|| 20.0 * f64::from(amplitude).log10())
+    (amplitude > SILENT_LEVEL && amplitude.is_finite())
+        .then(|| 20.0 * libm::log10(f64::from(amplitude)))
 }
 
 /// `ceiling` as the `f32` amplitude a limiter holds samples to: the largest `f32` not above
