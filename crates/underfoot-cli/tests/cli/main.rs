@@ -23,6 +23,7 @@ mod readme;
 mod render_cmd;
 mod run_cmd;
 mod serial_link;
+mod session_record;
 mod silence;
 mod step_stats;
 mod steps_in_time;
