@@ -88,6 +88,9 @@ enum Action {
     Run(String),
     /// The quick start's lines that this test stands for.
     Skip(&'static str),
+    /// A Python example: run when `python3` with numpy is there (CI makes it so,
+    /// `UNDERFOOT_REQUIRE_PYTHON`), else skipped, saying so.
+    Python(String),
 }
 
 fn action(line: &Line) -> Result<Action, String> {
@@ -116,6 +119,13 @@ fn action(line: &Line) -> Result<Action, String> {
     }
     if text == "underfoot" || text.starts_with("underfoot ") {
         return Ok(Action::Run(text.to_owned()));
+    }
+    // Markers piped into a recorded session.
+    if text.starts_with("printf ") && text.contains("| underfoot ") {
+        return Ok(Action::Run(text.to_owned()));
+    }
+    if text.starts_with("python3 examples/python/") {
+        return Ok(Action::Python(text.to_owned()));
     }
     Err(format!(
         "README.md:{}: the README-commands test does not know how to run `{text}`: \
@@ -156,6 +166,22 @@ fn the_readme_parser_joins_continuations_and_marks_hardware() {
         hardware: false,
     };
     assert!(action(&unknown).unwrap_err().contains("README.md:9"));
+}
+
+/// Whether `python3` with numpy runs here; with `UNDERFOOT_REQUIRE_PYTHON` set (CI), it
+/// must.
+fn python_with_numpy() -> bool {
+    let there = Command::new("python3")
+        .args(["-c", "import numpy"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    assert!(
+        there || std::env::var_os("UNDERFOOT_REQUIRE_PYTHON").is_none(),
+        "UNDERFOOT_REQUIRE_PYTHON is set, and python3 with numpy does not run"
+    );
+    there
 }
 
 /// The longest any one README command may take (the longest, `run` of an 8-step walk paced
@@ -212,6 +238,17 @@ fn every_readme_command_runs_as_written() {
                 continue;
             }
             Action::Run(command) => command,
+            Action::Python(command) => {
+                if python_with_numpy() {
+                    command
+                } else {
+                    eprintln!(
+                        "README.md:{}: skipped (no python3 with numpy here): {}",
+                        line.number, line.text
+                    );
+                    continue;
+                }
+            }
         };
         // Files, not pipes: a command that prints more than a pipe holds would block while
         // this loop only polls it.
