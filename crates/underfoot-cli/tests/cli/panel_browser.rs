@@ -252,6 +252,8 @@ fn the_panel_works_in_a_headless_browser() {
         "null",
         "--material",
         "gravel,snow",
+        "--record",
+        "rec",
     ]);
     let browser = Browser::start();
     let url = format!("http://{}/", panel.addr);
@@ -367,6 +369,104 @@ fn the_panel_works_in_a_headless_browser() {
     browser.script("document.querySelector('#fit-section').scrollIntoView()");
     std::thread::sleep(Duration::from_millis(300));
     browser.screenshot(&screenshots().join("panel-fit.png"));
+
+    // The trial bar: a participant, two trials started, a note; each reaches the record.
+    browser.script("document.querySelector('#trial-section').scrollIntoView()");
+    browser.type_into("#participant", "P07");
+    browser.click("#next-trial");
+    browser.wait_for(
+        Duration::from_secs(5),
+        "the first marker listed",
+        "return document.querySelectorAll('#markers li').length === 1",
+    );
+    browser.click("#next-trial");
+    browser.wait_for(
+        Duration::from_secs(5),
+        "the second marker listed",
+        "return document.querySelectorAll('#markers li').length === 2",
+    );
+    browser.type_into("#marker-text", "stepped off the tile");
+    browser.click("#mark");
+    browser.wait_for(
+        Duration::from_secs(5),
+        "the note listed",
+        "return document.querySelectorAll('#markers li').length === 3",
+    );
+    panel.wait_for(Duration::from_secs(5), "three markers in the status", |s| {
+        s["markers"] == 3
+    });
+
+    // The page at a desktop's, a small laptop's and a phone's width.
+    for (width, height) in [(1400, 1000), (800, 600), (390, 844)] {
+        browser.session_call(
+            "POST",
+            "/window/rect",
+            &json!({ "width": width, "height": height }),
+        );
+        std::thread::sleep(Duration::from_millis(400));
+        browser.script("window.scrollTo(0, 0)");
+        let overflow = browser.script(
+            "return document.documentElement.scrollWidth - document.documentElement.clientWidth",
+        );
+        browser.screenshot(&screenshots().join(format!("panel-{width}.png")));
+        browser.script("document.querySelector('#channels-section').scrollIntoView()");
+        std::thread::sleep(Duration::from_millis(300));
+        browser.screenshot(&screenshots().join(format!("panel-{width}-channels.png")));
+        browser.script("document.querySelector('#library-section').scrollIntoView()");
+        std::thread::sleep(Duration::from_millis(300));
+        browser.screenshot(&screenshots().join(format!("panel-{width}-library.png")));
+        browser.script("window.scrollTo(0, 0)");
+        assert!(
+            overflow.as_i64().unwrap() <= 0,
+            "at {width} px the page is {overflow} px wider than the window"
+        );
+    }
+
+    // STOP: the session fades out and ends; no channel says its input is live.
+    browser.click("#stop");
+    panel.wait_for(Duration::from_secs(10), "the session ended", |s| {
+        s["state"] != "running"
+    });
+    browser.wait_for(
+        Duration::from_secs(5),
+        "every badge stopped",
+        "return [...document.querySelectorAll('.watchdog')].every(b => b.textContent === 'stopped')",
+    );
+    let live = browser.script("return document.body.textContent.includes('sensor input: live')");
+    assert_eq!(live, json!(false));
+    // The one reason it ended.
+    let banner = browser.script("return document.querySelector('#banner').textContent");
+    assert!(
+        banner.as_str().unwrap().contains(": STOP was pressed"),
+        "{banner}"
+    );
+    browser.screenshot(&screenshots().join("panel-stopped.png"));
+    // The markers from the page are in the record, in order, with the trial bar's fields.
+    let record = panel.tmp.path().join("rec");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while !std::fs::read_to_string(record.join("manifest.json"))
+        .is_ok_and(|m| m.contains("\"reason\""))
+    {
+        assert!(Instant::now() < deadline, "the record never ended");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let events: Vec<Value> = std::fs::read_to_string(record.join("events.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let markers: Vec<&Value> = events.iter().filter(|e| e["kind"] == "marker").collect();
+    assert_eq!(markers.len(), 3, "{events:?}");
+    assert_eq!(markers[0]["text"], "trial 1 starts");
+    assert_eq!(markers[1]["trial"], 2);
+    assert_eq!(markers[2]["text"], "stepped off the tile");
+    assert!(markers.iter().all(|m| m["participant"] == "P07"));
+    assert!(
+        events
+            .iter()
+            .any(|e| e["kind"] == "material" && e["material"] == "sand")
+    );
+    assert_eq!(events.last().unwrap()["reason"], "remote_stop");
 
     let errors = browser.console_errors();
     assert!(errors.is_empty(), "console errors: {errors:?}");

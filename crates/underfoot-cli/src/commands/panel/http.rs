@@ -14,7 +14,7 @@ use axum::routing::{get, post};
 use futures_util::{SinkExt, StreamExt};
 use serde::Deserialize;
 use serde_json::json;
-use underfoot::live::RemoteCommand;
+use underfoot::live::{Marker, RemoteCommand};
 use underfoot::units::Decibels;
 
 use super::fitting::{self, MAX_UPLOAD};
@@ -65,6 +65,7 @@ pub fn router(shared: Arc<Shared>) -> Router {
         .route("/api/channels/{channel}/material", post(set_material))
         .route("/api/channels/{channel}/gain", post(set_gain))
         .route("/api/stop", post(stop))
+        .route("/api/markers", post(add_marker))
         .route(
             "/api/uploads",
             post(upload).layer(DefaultBodyLimit::max(MAX_UPLOAD)),
@@ -385,6 +386,23 @@ async fn set_gain(
 async fn stop(State(shared): State<Arc<Shared>>) -> ApiResult {
     send(&shared, RemoteCommand::Stop).await?;
     Ok(json_response(json!({ "stopping": true }).to_string()))
+}
+
+/// A marker into the session's record: refused (409, with why) when the session is not
+/// recorded or has ended, 400 for a marker the record cannot take.
+async fn add_marker(State(shared): State<Arc<Shared>>, body: Bytes) -> ApiResult {
+    let marker: Marker = parse(&body)?;
+    marker
+        .check()
+        .map_err(|e| error(StatusCode::BAD_REQUEST, e.to_string()))?;
+    send(&shared, RemoteCommand::Marker(marker.clone())).await?;
+    let mut view = shared.session();
+    let t = view.last.as_ref().map_or(0.0, |s| s.elapsed.as_secs_f64());
+    let mut recorded = serde_json::to_value(&marker).unwrap_or_default();
+    recorded["elapsed_s"] = json!(t);
+    view.markers += 1;
+    view.last_marker = Some(recorded.clone());
+    Ok(json_response(recorded.to_string()))
 }
 
 #[derive(Deserialize)]

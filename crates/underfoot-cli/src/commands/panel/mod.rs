@@ -13,7 +13,9 @@
 //!   fit figures and responses; `POST /api/channels/N/material` (`{"material": NAME,
 //!   "model": "iir"|"physical"}`), `POST /api/channels/N/gain` (`{"trim_db": DB}`, -40
 //!   to 0), `POST /api/stop`; `POST /api/uploads?name=FILE` (a recording's bytes),
-//!   `POST /api/fit` (`{"name": NAME, "uploads": [ID...]}`), `GET /api/fit/ID`.
+//!   `POST /api/fit` (`{"name": NAME, "uploads": [ID...]}`), `GET /api/fit/ID`;
+//!   `POST /api/markers` (`{"text": TEXT, "trial": N, "participant": P, "condition": C}`,
+//!   all but the text optional), a marker into the session's record (`--record DIR`).
 //!
 //! # Why axum
 //! axum on tokio and hyper: hyper is the most used HTTP implementation in Rust, fuzzed
@@ -112,7 +114,12 @@ pub fn run(args: &PanelArgs) -> anyhow::Result<()> {
     let address = listener
         .local_addr()
         .context("reading the listening address")?;
-    let shared = Arc::new(Shared::new(address, remote, args.run.library_path())?);
+    let shared = Arc::new(Shared::new(
+        address,
+        remote,
+        args.run.library_path(),
+        args.run.record_path(),
+    )?);
     let url = if remote {
         format!("http://{address}/?token={}", shared.token())
     } else {

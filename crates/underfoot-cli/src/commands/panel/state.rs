@@ -14,6 +14,7 @@ use serde::Serialize;
 use serde_json::json;
 use tokio::sync::watch;
 use underfoot::engine::{ChannelLevels, MaterialBank};
+use underfoot::live::EndReason;
 use underfoot::live::{Remote, RunningSession, Status, Summary};
 use underfoot::material::MaterialModel;
 use underfoot::synthesis::{PreparedMaterial, SynthModel, VoiceConfig};
@@ -144,6 +145,11 @@ pub struct SessionView {
     pub phase: Phase,
     /// The last status, to report again when the session has ended.
     pub last: Option<Status>,
+    /// The session's record folder (`--record`), if it is recorded.
+    pub record: Option<String>,
+    /// Markers taken into the record, and the last one.
+    pub markers: u64,
+    pub last_marker: Option<serde_json::Value>,
 }
 
 impl SessionView {
@@ -217,7 +223,8 @@ impl SessionView {
         let default = Status::default();
         let s = self.last.as_ref().unwrap_or(&default);
         let t = &s.telemetry;
-        let dbfs = |x: f32| (x > 0.0).then(|| 20.0 * f64::from(x).log10());
+        // Silence is null, by the library's one rule for it.
+        let dbfs = underfoot::safety::level_dbfs;
         let channels: Vec<_> = s
             .channels
             .iter()
@@ -242,7 +249,7 @@ impl SessionView {
                     "slot": c.slot,
                     "material": material,
                     "model": model,
-                    "trim_db": dbfs(c.trim).unwrap_or(-120.0),
+                    "trim_db": (20.0 * f64::from(c.trim.max(1e-6)).log10()).max(-120.0),
                 })
             })
             .collect();
@@ -259,6 +266,9 @@ impl SessionView {
             "ceiling_db": self.ceiling_db,
             "latency_ms": s.output_latency.map(|l| l.0 * 1e3),
             "catalog_version": self.version,
+            "record": self.record,
+            "markers": self.markers,
+            "last_marker": self.last_marker,
             "input": {
                 "events": s.input.events,
                 "rejected": s.input.rejected,
@@ -303,6 +313,7 @@ impl Shared {
         address: SocketAddr,
         remote: bool,
         library: Option<PathBuf>,
+        record: Option<PathBuf>,
     ) -> anyhow::Result<Self> {
         let port = address.port();
         let mut hosts = vec![
@@ -330,6 +341,9 @@ impl Shared {
             weight: Newtons::weight_of(70.0),
             phase: Phase::Starting,
             last: None,
+            record: record.map(|p| p.display().to_string()),
+            markers: 0,
+            last_marker: None,
         };
         let first: Arc<str> = view.status_json().into();
         Ok(Self {
@@ -543,9 +557,14 @@ impl Observer for PanelObserver {
                     format!("the input was lost ({event}) and --exit-on-disconnect is set")
                 }
                 None => format!(
-                    "the session ended after {:.1} s (the input played out, the stop button, \
-                     Ctrl-C or --duration)",
-                    summary.elapsed.as_secs_f64()
+                    "the session ended after {:.1} s: {}",
+                    summary.elapsed.as_secs_f64(),
+                    match summary.ended {
+                        EndReason::RemoteStop => "STOP was pressed".to_owned(),
+                        EndReason::Stopped => "the panel was asked to quit (Ctrl-C)".to_owned(),
+                        EndReason::Duration => "--duration was over".to_owned(),
+                        other => other.to_string(),
+                    }
                 ),
             }),
             Err(e) => Phase::Failed(crate::message::chain(e)),

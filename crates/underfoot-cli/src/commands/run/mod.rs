@@ -231,6 +231,15 @@ impl RunArgs {
         self.synth.library.clone()
     }
 
+    /// `--record`, if given.
+    #[cfg_attr(
+        not(feature = "panel"),
+        expect(dead_code, reason = "the panel shows where it records")
+    )]
+    pub fn record_path(&self) -> Option<PathBuf> {
+        self.record.clone()
+    }
+
     /// `--output`, or the default: the sound card when this build can play to one, else
     /// `null`, the paced pseudo-device. Never an error: the default build has no audio
     /// (it needs the ALSA headers), and a bare `run` should still run.

@@ -51,6 +51,9 @@ const view = {
   strikesBase: null,   // strikes when the page first heard the engine
   markersSeen: 0,
   drawing: false,      // a frame is asked for to draw the timelines
+  elapsed: 0,          // the session's time, from its last status
+  notes: [],           // markers put into the record from this page: session times
+  recording: null,     // what the trial bar last showed
 
 };
 
@@ -84,6 +87,8 @@ function connect() {
 
 function update(s) {
   view.ceilingDb = s.ceiling_db;
+  view.elapsed = s.elapsed_s;
+  setRecording(s.record, s.state === "running");
   $("#session").textContent = s.session;
   $("#elapsed").textContent = `${s.elapsed_s.toFixed(1)} s`;
   $("#events").textContent = s.input.events;
@@ -99,7 +104,7 @@ function update(s) {
   } else if (s.state !== "running") {
     $("#stop").disabled = true;
     setLink("engine stopped", "bad");
-    banner(`The engine has stopped: ${s.reason}. The page still shows the last levels; start the panel again for a new session.`, s.state === "failed");
+    banner(`The engine has stopped: ${s.reason}. Start the panel again for a new session.`, s.state === "failed");
   } else {
     $("#stop").disabled = false;
     setLink("live", "ok");
@@ -112,7 +117,7 @@ function update(s) {
   while (view.channels.length < s.channels.length) addChannel(view.channels.length);
   const total = s.channels.reduce((a, c) => a + c.strikes, 0);
   if (view.strikesBase === null) view.strikesBase = total;
-  s.channels.forEach((c, i) => updateChannel(view.channels[i], c, s.elapsed_s));
+  s.channels.forEach((c, i) => updateChannel(view.channels[i], c, s.elapsed_s, s.state === "running"));
   document.body.dataset.markers = view.markersSeen;
   document.body.dataset.strikesBase = view.strikesBase;
   document.body.dataset.strikes = total;
@@ -140,13 +145,21 @@ function addChannel(index) {
   fillMaterials(ch);
 }
 
-function updateChannel(ch, c, t) {
+function updateChannel(ch, c, t, running) {
   const root = ch.root;
+  root.classList.toggle("stopped", !running);
   const material = c.material ? `${c.material}${c.model === "physical" ? " (physical model)" : ""}` : "no material";
   $("h3", root).textContent = `Channel ${Number(root.dataset.channel) + 1}: ${material}`;
   const wd = $(".watchdog", root);
-  wd.textContent = c.live ? "sensor input: live" : "no input: faded";
-  wd.className = `watchdog pill ${c.live ? "ok" : "warn"}`;
+  // A session that has ended plays nothing, whatever its last status said.
+  const live = running && c.live;
+  wd.textContent = !running ? "stopped" : live ? "sensor input: live" : "no input: faded";
+  wd.className = `watchdog pill ${!running ? "bad" : live ? "ok" : "warn"}`;
+  if (!running) {
+    ch.peak = ch.rms = ch.drive = -Infinity;
+    ch.gr = 0;
+    c = { ...c, peak_dbfs: null, rms_dbfs: null, drive: 0, gain_reduction_db: 0, force_n: 0, sensors: c.sensors.map(() => 0) };
+  }
   $(".strikes", root).textContent = `${c.strikes} strikes`;
   // Force per sensor: bars scaled to the body weight.
   const bars = $(".force .bars", root);
@@ -213,6 +226,11 @@ function drawTimeline(ch, now) {
   g.strokeStyle = "#c62828";
   g.lineWidth = 2;
   for (const m of ch.markers) { g.beginPath(); g.moveTo(x(m), 16); g.lineTo(x(m), h); g.stroke(); }
+  // The record's markers: dashed, green, through every channel.
+  g.strokeStyle = "#1b7f3b";
+  g.setLineDash([4, 3]);
+  for (const m of view.notes) { g.beginPath(); g.moveTo(x(m), 16); g.lineTo(x(m), h); g.stroke(); }
+  g.setLineDash([]);
   g.lineWidth = 1.5;
   const line = (color, value) => {
     g.strokeStyle = color;
@@ -251,6 +269,53 @@ async function steer(index, ch) {
     banner(`channel ${index + 1}: ${e.message}`, true);
   }
 }
+
+// --- trials and markers ----------------------------------------------------------------
+
+function setRecording(dir, running) {
+  // Redrawn only when it changes: statuses come 50 times a second.
+  const key = `${dir}|${running}`;
+  if (key === view.recording) return;
+  view.recording = key;
+  const on = Boolean(dir) && running;
+  $("#record-where").textContent = dir
+    ? (running ? `recording into ${dir}` : `recorded into ${dir}; the session has ended`)
+    : "not recorded: start the panel with --record DIR to keep markers";
+  for (const c of $("#trial-form").querySelectorAll("input, button")) c.disabled = !on;
+}
+
+async function mark(text) {
+  const trial = Number($("#trial").value);
+  const body = { text };
+  if (Number.isInteger(trial) && trial > 0) body.trial = trial;
+  for (const key of ["participant", "condition"]) {
+    const v = $(`#${key}`).value.trim();
+    if (v) body[key] = v;
+  }
+  try {
+    const m = await api("POST", "/api/markers", body);
+    view.notes.push(m.elapsed_s);
+    const fields = [m.trial && `trial ${m.trial}`, m.participant, m.condition].filter(Boolean).join(", ");
+    $("#markers").prepend(el("li", { textContent: `${m.elapsed_s.toFixed(1)} s  ${m.text}${fields ? ` (${fields})` : ""}` }));
+    return true;
+  } catch (e) {
+    banner(`marker: ${e.message}`, true);
+    return false;
+  }
+}
+
+$("#trial-form").addEventListener("submit", async (e) => {
+  e.preventDefault();
+  const input = $("#marker-text");
+  const text = input.value.trim() || `trial ${$("#trial").value}`;
+  if (await mark(text)) input.value = "";
+});
+
+$("#next-trial").addEventListener("click", async () => {
+  const t = $("#trial");
+  t.value = String((Number(t.value) || 0) + 1);
+  await mark(`trial ${t.value} starts`);
+});
 
 $("#stop").addEventListener("click", () => {
   api("POST", "/api/stop", {}).catch((e) => banner(`stop: ${e.message}`, true));
