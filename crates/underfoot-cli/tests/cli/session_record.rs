@@ -231,7 +231,7 @@ fn a_session_killed_mid_walk_leaves_a_record_that_reads() {
     // At most the last second lost: force up to 2.5 s of the 4 s walked (the walk's
     // sensor time starts with the session), output at least 2.5 s.
     let force = csv_rows(&folder.join("force.csv"));
-    let last: f64 = force.iter().filter(|r| r.len() == 3).last().unwrap()[0]
+    let last: f64 = force.iter().rfind(|r| r.len() == 3).unwrap()[0]
         .parse()
         .unwrap();
     assert!(last > 2.5, "the force log ends at {last} s of 4");
