@@ -417,8 +417,13 @@ fn panel_serves_the_page_and_a_status_that_grows() {
     });
     assert_eq!(first["channels"].as_array().unwrap().len(), 2);
     // The WebSocket: at least 30 statuses a second, each the status JSON.
+    // The README says about 50 a second.
     let texts = ws_texts(panel.addr, 2.0);
-    assert!(texts.len() >= 60, "{} statuses in 2 s", texts.len());
+    assert!(
+        (80..=110).contains(&texts.len()),
+        "{} statuses in 2 s",
+        texts.len()
+    );
     let last: Value = serde_json::from_str(texts.last().unwrap()).unwrap();
     assert_eq!(last["channels"].as_array().unwrap().len(), 2);
     eprintln!("WebSocket: {} statuses in 2 s", texts.len());
@@ -475,7 +480,7 @@ fn panel_steers_the_session_and_guards_every_change() {
     let addr = panel.addr;
     let origin = format!("http://{addr}");
     let body = br#"{"material":"sand"}"#;
-    let path = "/api/channels/1/material";
+    let path = "/api/v2/channels/2/material";
     // No token; a wrong one; another site's page; another host name.
     let r = request(addr, "POST", path, &[("Origin", &origin)], body);
     assert_eq!(r.status, 401, "{}", r.body);
@@ -549,7 +554,7 @@ fn panel_steers_the_session_and_guards_every_change() {
     let r = request(
         addr,
         "POST",
-        "/api/channels/0/material",
+        "/api/v2/channels/1/material",
         &[("X-Underfoot-Token", &panel.token)],
         format!(r#"{{"material":"{name}","model":"physical"}}"#).as_bytes(),
     );
@@ -558,39 +563,44 @@ fn panel_steers_the_session_and_guards_every_change() {
         s["channels"][0]["material"] == name && s["channels"][0]["model"] == "physical"
     });
     // The trim: down only.
-    let r = panel.post("/api/channels/0/gain", r#"{"trim_db":-12}"#);
+    let r = panel.post("/api/v2/channels/1/gain", r#"{"trim_db":-12}"#);
     assert_eq!(r.status, 200, "{}", r.body);
     panel.wait_for(Duration::from_secs(3), "trim -12 dB", |s| {
         (s["channels"][0]["trim_db"].as_f64().unwrap() + 12.0).abs() < 0.01
     });
     for (path, body, code, says) in [
         (
-            "/api/channels/0/gain",
+            "/api/v2/channels/1/gain",
             r#"{"trim_db":3}"#,
             400,
             "only lower",
         ),
-        ("/api/channels/0/gain", r#"{"trim_db":"loud"}"#, 400, "JSON"),
         (
-            "/api/channels/9/material",
+            "/api/v2/channels/1/gain",
+            r#"{"trim_db":"loud"}"#,
+            400,
+            "JSON",
+        ),
+        (
+            "/api/v2/channels/9/material",
             r#"{"material":"sand"}"#,
             409,
             "channel 9",
         ),
         (
-            "/api/channels/x/material",
+            "/api/v2/channels/x/material",
             r#"{"material":"sand"}"#,
             400,
             "not a channel",
         ),
         (
-            "/api/channels/0/material",
+            "/api/v2/channels/1/material",
             r#"{"material":"lava"}"#,
             404,
             "no material",
         ),
         (
-            "/api/channels/0/material",
+            "/api/v2/channels/1/material",
             r#"{"material":"sand","extra":1}"#,
             400,
             "unknown field",
@@ -777,7 +787,10 @@ fn panel_fits_uploaded_recordings_and_plays_them() {
     );
     // In the library list, and playable now.
     assert!(panel.library_names().iter().any(|n| n == "lab-gravel"));
-    let r = panel.post("/api/channels/1/material", r#"{"material":"lab-gravel"}"#);
+    let r = panel.post(
+        "/api/v2/channels/2/material",
+        r#"{"material":"lab-gravel"}"#,
+    );
     assert_eq!(r.status, 200, "{}", r.body);
     panel.wait_for(Duration::from_secs(3), "channel 1 plays the fit", |s| {
         s["channels"][1]["material"] == "lab-gravel"
@@ -927,11 +940,11 @@ fn panel_survives_fuzzed_http_and_websocket_input() {
         format!("GET / HTTP/1.1\r\n{host}\r\n").into_bytes(),
         format!("GET /api/status HTTP/1.1\r\n{host}\r\n").into_bytes(),
         format!(
-            "POST /api/channels/0/material HTTP/1.1\r\n{host}{token}Content-Length: 20\r\n\r\n{{\"material\":\"sand\"}}"
+            "POST /api/v2/channels/1/material HTTP/1.1\r\n{host}{token}Content-Length: 20\r\n\r\n{{\"material\":\"sand\"}}"
         )
         .into_bytes(),
         format!(
-            "POST /api/channels/1/gain HTTP/1.1\r\n{host}{token}Content-Type: application/json\r\nContent-Length: 15\r\n\r\n{{\"trim_db\":-6}}"
+            "POST /api/v2/channels/2/gain HTTP/1.1\r\n{host}{token}Content-Type: application/json\r\nContent-Length: 15\r\n\r\n{{\"trim_db\":-6}}"
         )
         .into_bytes(),
         format!(
@@ -1127,4 +1140,120 @@ fn the_panel_leaves_the_jack_pacing_as_it_was() {
         panel[3],
         plain[3]
     );
+}
+
+/// One numbering: OSC and the HTTP API drive both channels of two by the numbers the
+/// status, the page and the record use (from 1); protocol 1's OSC addresses and HTTP
+/// paths (channels from 0) are refused with a reason, never obeyed on the neighbour.
+#[test]
+#[ignore = "slow tier: a panel session paced in real time"]
+fn osc_and_the_api_number_channels_as_the_status_and_the_record_do() {
+    use underfoot::io::osc::wire::{Arg, encode_message};
+    use underfoot::io::osc::{MARKER_ADDRESS, MATERIAL_ADDRESS, STEP_ADDRESS};
+
+    let port = std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let panel = Panel::start(&[
+        "--input",
+        &format!("osc:127.0.0.1:{port}"),
+        "--channels",
+        "2",
+        "--output",
+        "null",
+        "--material",
+        "gravel",
+        "--record",
+        "rec",
+    ]);
+    panel.wait_for(Duration::from_secs(10), "running", |s| {
+        s["state"] == "running"
+    });
+    let sender = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let send = |address: &str, args: &[Arg<'_>]| {
+        sender
+            .send_to(&encode_message(address, args), ("127.0.0.1", port))
+            .unwrap();
+    };
+    // OSC: channel 2 to sand, a step on channel 2, a marker; the API: channel 1 to snow.
+    send(MATERIAL_ADDRESS, &[Arg::Int(2), Arg::Str("sand")]);
+    let r = panel.post("/api/v2/channels/1/material", r#"{"material":"snow"}"#);
+    assert_eq!(r.status, 200, "{}", r.body);
+    assert_eq!(r.json()["channel"], 1);
+    std::thread::sleep(Duration::from_millis(200));
+    send(STEP_ADDRESS, &[Arg::Int(2), Arg::Float(1.0)]);
+    send(MARKER_ADDRESS, &[Arg::Str("osc marker"), Arg::Int(4)]);
+    let s = panel.wait_for(Duration::from_secs(5), "both changes and the step", |s| {
+        s["channels"][1]["material"] == "sand"
+            && s["channels"][0]["material"] == "snow"
+            && s["channels"][1]["strikes"] == 1
+    });
+    assert_eq!(s["channels"][0]["channel"], 1);
+    assert_eq!(s["channels"][1]["channel"], 2);
+    assert_eq!(s["channels"][0]["strikes"], 0);
+    // Protocol 1: refused, and said why, in the status.
+    send("/underfoot/step", &[Arg::Int(1)]);
+    send(STEP_ADDRESS, &[Arg::Int(3)]);
+    let s = panel.wait_for(Duration::from_secs(5), "two rejections", |s| {
+        s["input"]["rejected"] == 2
+    });
+    let reasons = &s["input"]["rejected_by_reason"];
+    assert_eq!(reasons["protocol 1 address"], 1, "{s}");
+    assert_eq!(reasons["channel out of range"], 1, "{s}");
+    assert!(
+        s["input"]["last_reject"]
+            .as_str()
+            .unwrap()
+            .contains("count from 1"),
+        "{s}"
+    );
+    assert_eq!(
+        s["channels"][0]["strikes"], 0,
+        "protocol 1's channel 1 is not obeyed"
+    );
+    let old = panel.post("/api/channels/0/material", r#"{"material":"sand"}"#);
+    assert_eq!(old.status, 410, "{}", old.body);
+    assert!(old.body.contains("/api/v2/channels/N"), "{}", old.body);
+    let zero = panel.post("/api/v2/channels/0/gain", r#"{"trim_db":-6}"#);
+    assert_eq!(zero.status, 400, "{}", zero.body);
+    assert!(zero.body.contains("count from 1"), "{}", zero.body);
+
+    // The record calls them the same.
+    assert_eq!(panel.post("/api/stop", "{}").status, 200);
+    let record = panel.tmp.path().join("rec");
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    while !std::fs::read_to_string(record.join("manifest.json"))
+        .is_ok_and(|m| m.contains("\"reason\""))
+    {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the record never ended"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let events: Vec<Value> = std::fs::read_to_string(record.join("events.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let material = |from: &str| {
+        events
+            .iter()
+            .find(|e| e["kind"] == "material" && e["from"] == from)
+            .unwrap_or_else(|| panic!("no material change from {from}: {events:?}"))
+            .clone()
+    };
+    assert_eq!(material("input")["channel"], 2);
+    assert_eq!(material("remote")["channel"], 1);
+    assert_eq!(material("remote")["material"], "snow");
+    let marker = events.iter().find(|e| e["kind"] == "marker").unwrap();
+    assert_eq!(marker["text"], "osc marker");
+    assert_eq!(marker["trial"], 4);
+    let strikes = std::fs::read_to_string(record.join("strikes.csv")).unwrap();
+    let rows: Vec<&str> = strikes.lines().skip(1).collect();
+    assert_eq!(rows.len(), 1, "{strikes}");
+    assert_eq!(rows[0].split(',').nth(2), Some("2"));
+    assert_eq!(rows[0].split(',').nth(4), Some("sand"));
 }

@@ -5,37 +5,45 @@
 #[cfg(feature = "osc")]
 pub(super) fn run_osc(data: &[u8]) {
     use crate::engine::event::Event;
-    use crate::io::osc::OscDecoder;
+    use crate::io::osc::{Decoded, OscDecoder};
     let decoder = OscDecoder::new(vec!["gravel".into(), "sand".into()], 2)
         .expect("two channels and two materials");
     decoder.decode(data, &mut |event| match event {
-        Ok(Event::Force { channel, .. }) => assert!(channel < 2, "force on channel {channel}"),
-        Ok(Event::Step { channel, intensity }) => {
+        Ok(Decoded::Event(Event::Force { channel, .. })) => {
+            assert!(channel < 2, "force on channel {channel}")
+        }
+        Ok(Decoded::Event(Event::Step { channel, intensity })) => {
             assert!(channel < 2, "step on channel {channel}");
             assert!(intensity.is_finite(), "step intensity {intensity}");
         }
-        Ok(Event::Material { channel, slot }) => {
+        Ok(Decoded::Event(Event::Material { channel, slot })) => {
             assert!(
                 channel < 2 && slot < 2,
                 "material {slot} on channel {channel}"
             );
         }
-        _ => {}
+        Ok(Decoded::Marker(m)) => assert!(m.check().is_ok(), "marker {m:?}"),
+        Err(_) => {}
     });
 }
 
 #[cfg(feature = "osc")]
 pub(super) fn seeds_osc() -> Vec<Vec<u8>> {
     use crate::io::osc::wire::{Arg, encode_bundle, encode_message};
-    use crate::io::osc::{FORCE_ADDRESS, MATERIAL_ADDRESS, STEP_ADDRESS};
+    use crate::io::osc::{FORCE_ADDRESS, MARKER_ADDRESS, MATERIAL_ADDRESS, STEP_ADDRESS};
+    // Channels count from 1.
     let force = encode_message(
         FORCE_ADDRESS,
-        &[Arg::Int(0), Arg::Float(300.0), Arg::Float(20.0)],
+        &[Arg::Int(1), Arg::Float(300.0), Arg::Float(20.0)],
     );
-    let step = encode_message(STEP_ADDRESS, &[Arg::Int(1), Arg::Float(0.8)]);
-    let material = encode_message(MATERIAL_ADDRESS, &[Arg::Int(0), Arg::Str("sand")]);
+    let step = encode_message(STEP_ADDRESS, &[Arg::Int(2), Arg::Float(0.8)]);
+    let material = encode_message(MATERIAL_ADDRESS, &[Arg::Int(1), Arg::Str("sand")]);
+    let marker = encode_message(
+        MARKER_ADDRESS,
+        &[Arg::Str("trial 1"), Arg::Int(1), Arg::Str("P01")],
+    );
     let bundle = encode_bundle(&[force.clone(), step.clone(), material.clone()]);
-    vec![force, step, material, bundle]
+    vec![force, step, material, marker, bundle]
 }
 
 // ---- serial frames (COBS, CRC-16) ----

@@ -65,6 +65,7 @@ use crate::engine::Event;
 
 #[cfg(feature = "audio")]
 pub mod audio;
+pub mod marker;
 #[cfg(feature = "osc")]
 pub mod osc;
 #[cfg(feature = "serial")]
@@ -387,6 +388,24 @@ pub trait EventSource: Send {
     /// The next change of the link to the device since the last call (a loss, a return),
     /// oldest first; `None` for a source that has no device to lose.
     fn link_event(&mut self) -> Option<LinkEvent> {
+        None
+    }
+
+    /// The next marker the source received (OSC's `/underfoot/v2/marker`), oldest first;
+    /// `None` for a source that carries none.
+    fn take_marker(&mut self) -> Option<marker::Marker> {
+        None
+    }
+
+    /// Rejections so far by reason, for a person (only the reasons that occurred); empty
+    /// for a source that does not tell them apart. They add up to
+    /// [`SourceStats::rejected`] when it does.
+    fn rejections(&self) -> Vec<(&'static str, u64)> {
+        Vec::new()
+    }
+
+    /// Why the most recent rejected input was refused, if the source says.
+    fn last_reject(&self) -> Option<String> {
         None
     }
 }

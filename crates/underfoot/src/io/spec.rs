@@ -286,6 +286,28 @@ pub fn parse_count(s: &str, what: &'static str, lo: usize, hi: usize) -> Result<
     parse_within(s, what, lo, hi, "a whole number")
 }
 
+/// A channel as a person numbers it, from 1 (as audio tools number ports, and as the
+/// status, the panel and OSC do), returned as the engine's index, from 0.
+///
+/// # Errors
+/// [`SpecError`] naming `what` for anything but a whole number from 1 to 65536; 0 says
+/// that channels count from 1.
+pub fn parse_channel_number(s: &str, what: &'static str) -> Result<u16, SpecError> {
+    match s.trim().parse::<u32>() {
+        Ok(0) => Err(invalid(
+            what,
+            s,
+            "channels count from 1 (the first channel is 1)".to_owned(),
+        )),
+        Ok(n) if n <= u32::from(u16::MAX) + 1 => Ok((n - 1) as u16),
+        _ => Err(invalid(
+            what,
+            s,
+            "expected a channel number from 1".to_owned(),
+        )),
+    }
+}
+
 /// `s` (trimmed) parsed as a `T` within `lo..=hi`, else an error that says it expected
 /// `kind` in that range. A NaN is in no range.
 fn parse_within<T>(s: &str, what: &'static str, lo: T, hi: T, kind: &str) -> Result<T, SpecError>

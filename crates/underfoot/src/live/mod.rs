@@ -181,9 +181,9 @@ pub enum LiveError {
     #[error("adaptation needs an equalizer to start from (--eq FILE, from `calibrate equalize`)")]
     AdaptNeedsEqualizer,
     /// The channel to adapt is not one the engine plays.
-    #[error("--adapt-channel {channel}: the session plays {channels} channel(s), 0 to {}", channels.saturating_sub(1))]
+    #[error("--adapt-channel {}: the session plays {channels} channel(s), 1 to {channels}", u32::from(*channel) + 1)]
     AdaptChannel {
-        /// The channel asked for.
+        /// The channel asked for (the engine's index, from 0).
         channel: u16,
         /// The engine's channels.
         channels: usize,

@@ -51,7 +51,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant, SystemTime};
 
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use serde_json::{Value, json};
 
 use crate::atomic_file::OutputFile;
@@ -80,73 +80,7 @@ const WAV_SYNC: Duration = Duration::from_millis(500);
 /// How long the output ring holds: what the session's thread may fall behind by.
 const TAP_SECONDS: f64 = 2.0;
 
-/// The longest marker text, and the longest of its other fields, in bytes.
-pub const MAX_MARKER_TEXT: usize = 1000;
-const MAX_MARKER_FIELD: usize = 200;
-
-/// A marker: a moment of the session an experimenter names (a trial's start, an
-/// answer, an incident), with the trial it belongs to when there is one.
-#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Marker {
-    /// What happened, free text (at most [`MAX_MARKER_TEXT`] bytes).
-    pub text: String,
-    /// The trial number.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub trial: Option<u32>,
-    /// The participant's code.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub participant: Option<String>,
-    /// The condition.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub condition: Option<String>,
-}
-
-impl Marker {
-    /// A marker of `text` alone.
-    #[must_use]
-    pub fn new(text: impl Into<String>) -> Self {
-        Self {
-            text: text.into(),
-            ..Self::default()
-        }
-    }
-
-    /// Whether it can be recorded: text not empty, no field too long or holding a
-    /// control character (a line break would split a log's line).
-    ///
-    /// # Errors
-    /// [`RecordError::Marker`] saying which field and why.
-    pub fn check(&self) -> Result<(), RecordError> {
-        let bad = |reason: String| Err(RecordError::Marker(reason));
-        if self.text.trim().is_empty() {
-            return bad("a marker needs a text".into());
-        }
-        if self.text.len() > MAX_MARKER_TEXT {
-            return bad(format!(
-                "the text is {} bytes, at most {MAX_MARKER_TEXT}",
-                self.text.len()
-            ));
-        }
-        for (name, value) in [
-            ("text", Some(&self.text)),
-            ("participant", self.participant.as_ref()),
-            ("condition", self.condition.as_ref()),
-        ] {
-            let Some(value) = value else { continue };
-            if name != "text" && value.len() > MAX_MARKER_FIELD {
-                return bad(format!(
-                    "the {name} is {} bytes, at most {MAX_MARKER_FIELD}",
-                    value.len()
-                ));
-            }
-            if value.chars().any(char::is_control) {
-                return bad(format!("the {name} holds a control character"));
-            }
-        }
-        Ok(())
-    }
-}
+pub use crate::io::marker::{MAX_MARKER_TEXT, Marker, MarkerError};
 
 /// Why a record could not be made, or a marker not taken.
 #[derive(Debug, thiserror::Error)]
@@ -173,8 +107,8 @@ pub enum RecordError {
     #[error(transparent)]
     Wav(#[from] IoError),
     /// A marker that cannot be recorded.
-    #[error("marker refused: {0}")]
-    Marker(String),
+    #[error(transparent)]
+    Marker(#[from] MarkerError),
 }
 
 /// What a session records, and where.

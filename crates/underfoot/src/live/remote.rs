@@ -132,12 +132,17 @@ pub(super) fn serve(
             }
             RemoteCommand::Marker(_) | RemoteCommand::Stop => None,
         };
+        // A channel is the engine's index here; a person calls it by its number, from 1.
+        let beyond = |channel: u16| {
+            RemoteError::Refused(format!(
+                "channel {}: the session plays {channels} channel(s), 1 to {channels}",
+                u32::from(channel) + 1
+            ))
+        };
         let result = match command {
             RemoteCommand::Material { channel, slot } => {
                 if usize::from(channel) >= channels {
-                    Err(RemoteError::Refused(format!(
-                        "channel {channel}: the engine plays {channels} channel(s)"
-                    )))
+                    Err(beyond(channel))
                 } else if usize::from(slot) >= controller.material_names().len() {
                     Err(RemoteError::Refused(format!(
                         "slot {slot}: the bank holds {} material(s)",
@@ -149,6 +154,9 @@ pub(super) fn serve(
                         .map(|()| None)
                         .map_err(RemoteError::from)
                 }
+            }
+            RemoteCommand::Trim { channel, .. } if usize::from(channel) >= channels => {
+                Err(beyond(channel))
             }
             RemoteCommand::Trim { channel, gain } => controller
                 .set_trim(channel, gain)

@@ -521,6 +521,13 @@ pub struct Status {
     /// to its buffer being heard), or one buffer for the paced device; `None` until the
     /// device has said.
     pub output_latency: Option<Seconds>,
+    /// The input's rejections by reason, for a source that tells them apart (OSC):
+    /// only the reasons that occurred.
+    pub rejections: Vec<(&'static str, u64)>,
+    /// Why the input's last rejected message was refused, if it says.
+    pub last_reject: Option<String>,
+    /// Markers the input sent (OSC) to a session that is not recorded: nowhere to go.
+    pub markers_unrecorded: u64,
 }
 
 impl RunningSession {
@@ -580,6 +587,7 @@ impl RunningSession {
             .duration
             .map(|d| started + Duration::from_secs_f64(d.0.max(0.0)));
         let mut queue_full = 0u64;
+        let mut markers_unrecorded = 0u64;
         let mut ended_at = None;
         let mut reason = EndReason::Stopped;
         // Set when the input was lost and the session is to end on it: it still fades
@@ -609,6 +617,11 @@ impl RunningSession {
                     *levels = meters.take_channel(c).unwrap_or_default();
                 }
                 status.input = source.stats();
+                if status.input.rejected > 0 {
+                    status.rejections = source.rejections();
+                    status.last_reject = source.last_reject();
+                }
+                status.markers_unrecorded = markers_unrecorded;
                 status.queue_full = queue_full;
                 status.adapt = self.adapt.as_ref().map(|a| a.adapt.status());
                 (status.late_buffers, status.output_latency) = self.output.live();
@@ -645,6 +658,7 @@ impl RunningSession {
             }
             let polled = Instant::now();
             let mut record_failed = None;
+            let mut break_err = None;
             let state = source.poll(poll, &mut |event| {
                 if let Some(r) = &mut recorder
                     && record_failed.is_none()
@@ -657,6 +671,7 @@ impl RunningSession {
                             serde_json::json!({
                                 "channel": u32::from(channel) + 1,
                                 "slot": slot,
+                                "material": controller.material_names().get(usize::from(slot)),
                                 "from": "input",
                             }),
                         ),
@@ -673,6 +688,19 @@ impl RunningSession {
                 (_, Some(e)) => break Err(e.into()),
                 (Ok(state), None) => state,
             };
+            while let Some(marker) = source.take_marker() {
+                match &mut recorder {
+                    Some(r) => {
+                        if let Err(e) = r.marker(meters.frames(), &marker) {
+                            break_err = Some(e);
+                        }
+                    }
+                    None => markers_unrecorded += 1,
+                }
+            }
+            if let Some(e) = break_err.take() {
+                break Err(e.into());
+            }
             while let Some(event) = source.link_event() {
                 if let Some(r) = &mut recorder {
                     let _ = r.event(

@@ -164,9 +164,13 @@ fn one_osc_step_is_silent_within_100_ms_after_its_window() {
             ..EngineConfig::default()
         };
         let (mut ctl, mut eng) = engine::build(&config, bank, &[slot]).unwrap();
-        let datagram = encode_message(STEP_ADDRESS, &[Arg::Int(0), Arg::Float(1.0)]);
+        // Channel 1: the engine's first (OSC numbers channels from 1).
+        let datagram = encode_message(STEP_ADDRESS, &[Arg::Int(1), Arg::Float(1.0)]);
         let mut events = Vec::new();
-        decoder.decode(&datagram, &mut |e| events.push(e.unwrap()));
+        decoder.decode(&datagram, &mut |e| match e.unwrap() {
+            underfoot::io::osc::Decoded::Event(e) => events.push(e),
+            other => panic!("{other:?}"),
+        });
         assert_eq!(events.len(), 1);
         let mut out = vec![0.0f32; 2 * RATE.0 as usize];
         let mut sent = false;

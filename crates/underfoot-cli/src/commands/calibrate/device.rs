@@ -77,11 +77,11 @@ pub struct AudioDeviceArgs {
     /// `--device audio`: audio host: default, alsa or jack.
     #[arg(long, default_value = "default", value_name = "HOST")]
     pub host: String,
-    /// `--device audio`: the output channel that drives the actuator, from 0.
-    #[arg(long = "out-channel", default_value_t = 0, value_name = "N")]
+    /// `--device audio`: the output channel that drives the actuator, from 1.
+    #[arg(long = "out-channel", default_value = "1", value_name = "N", value_parser = parse_out_channel)]
     pub out_channel: u16,
-    /// `--device audio`: the input channel the accelerometer is on, from 0.
-    #[arg(long = "in-channel", default_value_t = 0, value_name = "N")]
+    /// `--device audio`: the input channel the accelerometer is on, from 1.
+    #[arg(long = "in-channel", default_value = "1", value_name = "N", value_parser = parse_in_channel)]
     pub in_channel: u16,
     /// `--device audio`: channels of the output stream (the others play silence).
     #[arg(long = "output-channels", default_value_t = 2, value_name = "N")]
@@ -184,9 +184,9 @@ fn audio_loop(
     let description = format!(
         "sound card ({host} host): output {} channel {}, input {} channel {}",
         name(&output),
-        args.out_channel,
+        u32::from(args.out_channel) + 1,
         name(&input),
-        args.in_channel
+        u32::from(args.in_channel) + 1
     );
     let cfg = LoopConfig {
         out_channel: args.out_channel,
@@ -214,4 +214,14 @@ fn audio_loop(
         input.as_deref().unwrap_or("default"),
         args.host
     )
+}
+
+/// `--out-channel`: from 1, held as the stream's index from 0.
+fn parse_out_channel(s: &str) -> Result<u16, underfoot::io::spec::SpecError> {
+    underfoot::io::spec::parse_channel_number(s, "--out-channel")
+}
+
+/// `--in-channel`: from 1, held as the stream's index from 0.
+fn parse_in_channel(s: &str) -> Result<u16, underfoot::io::spec::SpecError> {
+    underfoot::io::spec::parse_channel_number(s, "--in-channel")
 }

@@ -10,7 +10,7 @@ use axum::extract::{DefaultBodyLimit, Path, Query, Request, State};
 use axum::http::{HeaderMap, HeaderValue, Method, StatusCode, header};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
-use axum::routing::{get, post};
+use axum::routing::{any, get, post};
 use futures_util::{SinkExt, StreamExt};
 use serde::Deserialize;
 use serde_json::json;
@@ -62,8 +62,11 @@ pub fn router(shared: Arc<Shared>) -> Router {
         .route("/api/status", get(status))
         .route("/api/library", get(library))
         .route("/api/ws", get(websocket))
-        .route("/api/channels/{channel}/material", post(set_material))
-        .route("/api/channels/{channel}/gain", post(set_gain))
+        .route("/api/v2/channels/{channel}/material", post(set_material))
+        .route("/api/v2/channels/{channel}/gain", post(set_gain))
+        // Protocol 1 numbered channels from 0: its calls are refused, not obeyed on
+        // the neighbouring channel.
+        .route("/api/channels/{*rest}", any(protocol_1))
         .route("/api/stop", post(stop))
         .route("/api/markers", post(add_marker))
         .route(
@@ -249,7 +252,7 @@ async fn library(State(shared): State<Arc<Shared>>) -> Response {
     )
 }
 
-/// The status, pushed as it changes (40 to 60 times a second while the session runs).
+/// The status, pushed as it changes (about 50 times a second while the session runs).
 async fn websocket(State(shared): State<Arc<Shared>>, upgrade: WebSocketUpgrade) -> Response {
     upgrade
         .max_message_size(MAX_WS_MESSAGE)
@@ -297,13 +300,28 @@ fn parse<T: for<'de> Deserialize<'de>>(body: &Bytes) -> Result<T, ApiError> {
     })
 }
 
+/// The engine's index of the channel a person calls `text`: channels count from 1.
 fn channel_of(text: &str) -> Result<u16, ApiError> {
-    text.parse().map_err(|_| {
-        error(
+    match text.parse::<u32>() {
+        Ok(n) if n >= 1 && n <= u32::from(u16::MAX) + 1 => Ok((n - 1) as u16),
+        _ => Err(error(
             StatusCode::BAD_REQUEST,
-            format!("channel {:?}: not a channel number", truncate(text)),
-        )
-    })
+            format!(
+                "channel {:?}: not a channel number (channels count from 1)",
+                truncate(text)
+            ),
+        )),
+    }
+}
+
+/// A call of protocol 1 (channels from 0): refused with what to call instead.
+async fn protocol_1() -> ApiError {
+    error(
+        StatusCode::GONE,
+        "this is protocol 1's address, whose channels counted from 0; this panel speaks \
+         protocol 2: /api/v2/channels/N/material and /api/v2/channels/N/gain, with \
+         channels from 1 as the page and the status number them",
+    )
 }
 
 /// Sends a command to the session from a blocking thread (the session answers within
@@ -343,7 +361,7 @@ async fn set_material(
         .map_err(|e| error(StatusCode::NOT_FOUND, e))?;
     send(&shared, RemoteCommand::Material { channel, slot }).await?;
     Ok(json_response(
-        json!({ "channel": channel, "material": request.material, "slot": slot }).to_string(),
+        json!({ "channel": channel + 1, "material": request.material, "slot": slot }).to_string(),
     ))
 }
 
@@ -379,7 +397,7 @@ async fn set_gain(
     )
     .await?;
     Ok(json_response(
-        json!({ "channel": channel, "trim_db": request.trim_db }).to_string(),
+        json!({ "channel": channel + 1, "trim_db": request.trim_db }).to_string(),
     ))
 }
 

@@ -8,7 +8,7 @@
 //! - `/`: the page (embedded in the binary with its script and style sheet; no CDN, no
 //!   build step), which shows each channel's levels live and steers the session;
 //! - `/api/ws`: a WebSocket of the session's status, one JSON text per pass of the
-//!   session's loop (40 to 60 a second);
+//!   session's loop (about 50 a second);
 //! - `GET /api/status`: the latest status; `GET /api/library`: the materials, their
 //!   fit figures and responses; `POST /api/channels/N/material` (`{"material": NAME,
 //!   "model": "iir"|"physical"}`), `POST /api/channels/N/gain` (`{"trim_db": DB}`, -40

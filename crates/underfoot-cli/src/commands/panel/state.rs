@@ -228,7 +228,8 @@ impl SessionView {
         let channels: Vec<_> = s
             .channels
             .iter()
-            .map(|c| {
+            .enumerate()
+            .map(|(i, c)| {
                 let (material, model) = c
                     .slot
                     .and_then(|slot| self.slots.get(usize::from(slot)))
@@ -236,6 +237,7 @@ impl SessionView {
                         (Some(self.entries[*e].model.name.as_str()), Some(*m))
                     });
                 json!({
+                    "channel": i + 1,
                     "force_n": c.force,
                     "sensors": &c.sensors[..usize::from(c.sensor_count)],
                     "weight_n": self.weight.0,
@@ -275,6 +277,8 @@ impl SessionView {
                 "lost": s.queue_full + t.dropped,
                 "disconnects": s.input.disconnects,
                 "link": link,
+                "rejected_by_reason": s.rejections.iter().map(|(why, n)| (why.to_string(), json!(n))).collect::<serde_json::Map<_, _>>(),
+                "last_reject": s.last_reject,
             },
             "engine": {
                 "frames": t.frames,

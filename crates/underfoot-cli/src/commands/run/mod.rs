@@ -110,6 +110,10 @@ pub struct RunArgs {
     /// No live status block (it is shown on stderr when stderr is a terminal).
     #[arg(long, short = 'q')]
     quiet: bool,
+    /// Say on stderr, as they happen (at most once a second), the input's rejected
+    /// messages: how many, for which reasons, and what the last one did wrong.
+    #[arg(long, short = 'v')]
+    verbose: bool,
     /// A line of JSON a second to FILE (or `-`, standard output, before the summary):
     /// elapsed time, per channel force (N), strikes, peak (dBFS, null for silence) and
     /// limited samples; input events, rejects, losses; late events, non-finite samples,
@@ -122,14 +126,14 @@ pub struct RunArgs {
     /// the sweeps' bounds). Needs --output audio.
     #[arg(long, requires = "eq")]
     adapt: bool,
-    /// The input channel (0-based) the accelerometer is on [default: 0].
-    #[arg(long = "adapt-input", value_name = "N", requires = "adapt")]
+    /// The input channel the accelerometer is on, from 1 [default: 1].
+    #[arg(long = "adapt-input", value_name = "N", requires = "adapt", value_parser = parse_adapt_input)]
     adapt_input: Option<u16>,
     /// The input device the accelerometer is on [default: the output's device].
     #[arg(long = "adapt-device", value_name = "NAME", requires = "adapt")]
     adapt_device: Option<String>,
-    /// The output channel (0-based) whose equalizer adapts [default: 0].
-    #[arg(long = "adapt-channel", value_name = "N", requires = "adapt")]
+    /// The output channel whose equalizer adapts, from 1 [default: 1].
+    #[arg(long = "adapt-channel", value_name = "N", requires = "adapt", value_parser = parse_adapt_channel)]
     adapt_channel: Option<u16>,
     /// Save the adapted equalizer when the session ends (the format of --eq, to start
     /// from next time).
@@ -192,6 +196,16 @@ fn parse_duration(s: &str) -> Result<f64, SpecError> {
 fn parse_sensor_latency(s: &str) -> Result<f64, SpecError> {
     // In milliseconds, like the flag.
     spec::parse_seconds(s, "sensor latency (ms)", 0.0, 1000.0).map(|d| d.0)
+}
+
+/// `--adapt-input`: from 1, held as the stream's index from 0.
+fn parse_adapt_input(s: &str) -> Result<u16, SpecError> {
+    spec::parse_channel_number(s, "--adapt-input")
+}
+
+/// `--adapt-channel`: from 1, held as the engine's index from 0.
+fn parse_adapt_channel(s: &str) -> Result<u16, SpecError> {
+    spec::parse_channel_number(s, "--adapt-channel")
 }
 
 fn parse_channels(s: &str) -> Result<usize, SpecError> {
@@ -365,7 +379,7 @@ pub trait Observer {
     ) -> anyhow::Result<Option<Vec<u16>>>;
     /// The session has started: what plays, and the handle that steers it.
     fn started(&mut self, session: &RunningSession, setup: &Setup);
-    /// What the session is doing, every 10 ms or so.
+    /// What the session is doing, about every 20 ms.
     fn status(&mut self, status: &Status);
     /// The session has ended, with its summary or the error it ended on.
     fn ended(&mut self, outcome: Result<&Summary, &anyhow::Error>);
@@ -373,7 +387,7 @@ pub trait Observer {
 
 /// How often the session reports to an observer: often enough for meters that move
 /// smoothly (the loop then polls the input this often too).
-const OBSERVER_EVERY: std::time::Duration = std::time::Duration::from_millis(10);
+const OBSERVER_EVERY: std::time::Duration = std::time::Duration::from_millis(20);
 
 /// Runs `underfoot run`.
 pub fn run(args: &RunArgs) -> anyhow::Result<()> {
@@ -505,8 +519,9 @@ pub fn run_session(
         (None, None) => None,
     };
     let mut display = status::Display::new(!args.quiet && std::io::stderr().is_terminal(), json);
-    let summary = if display.active() || observer.is_some() {
+    let summary = if display.active() || observer.is_some() || args.verbose {
         let mut failed = None;
+        let mut rejects = Rejects::default();
         let mut paced = status::Paced::new(status::EVERY);
         // Both callbacks draw on the terminal; the session calls them one at a time.
         let display = std::cell::RefCell::new(&mut display);
@@ -526,6 +541,12 @@ pub fn run_session(
                     o.status(s);
                 }
                 let mut display = display.borrow_mut();
+                if args.verbose
+                    && let Some(line) = rejects.news(s)
+                {
+                    display.clear();
+                    eprintln!("underfoot: {line}");
+                }
                 if failed.is_none()
                     && display.active()
                     && let Some(s) = paced.take(s)
@@ -584,6 +605,59 @@ pub fn run_session(
     match &summary.lost {
         Some(event) => bail!("input {event}; exiting (--exit-on-disconnect)"),
         None => Ok(()),
+    }
+}
+
+/// What `--verbose` has said of the input's rejections.
+#[derive(Default)]
+struct Rejects {
+    said: u64,
+    markers_said: u64,
+    at: Option<std::time::Instant>,
+}
+
+impl Rejects {
+    /// A line about rejections or markers that went nowhere since the last one, at most
+    /// once a second.
+    fn news(&mut self, s: &Status) -> Option<String> {
+        let new = s.input.rejected > self.said || s.markers_unrecorded > self.markers_said;
+        if !new
+            || self
+                .at
+                .is_some_and(|t| t.elapsed() < std::time::Duration::from_secs(1))
+        {
+            return None;
+        }
+        self.at = Some(std::time::Instant::now());
+        self.said = s.input.rejected;
+        self.markers_said = s.markers_unrecorded;
+        let mut parts = Vec::new();
+        if s.input.rejected > 0 {
+            let reasons: Vec<String> = s
+                .rejections
+                .iter()
+                .map(|(why, n)| format!("{why}: {n}"))
+                .collect();
+            parts.push(format!(
+                "{} input message(s) rejected so far{}{}",
+                s.input.rejected,
+                if reasons.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", reasons.join(", "))
+                },
+                s.last_reject
+                    .as_ref()
+                    .map_or_else(String::new, |w| format!("; the last: {w}"))
+            ));
+        }
+        if s.markers_unrecorded > 0 {
+            parts.push(format!(
+                "{} marker(s) received with no record to keep them (--record DIR)",
+                s.markers_unrecorded
+            ));
+        }
+        Some(parts.join("; "))
     }
 }
 

@@ -103,6 +103,11 @@ pub fn block(s: &Status) -> Vec<String> {
         ));
     }
     lines.extend(s.adapt.as_ref().map(adapt_line));
+    if let Some(why) = &s.last_reject {
+        // Cut to the block's width: a wrapped line would throw the redraw off.
+        let line = format!("last rejected: {why}");
+        lines.push(line.chars().take(79).collect());
+    }
     lines
 }
 
@@ -153,6 +158,9 @@ pub fn json_line(s: &Status, peaks: &[f32]) -> String {
             "disconnects": s.input.disconnects,
             "reconnects": s.input.reconnects,
             "lost_queue_full": s.queue_full,
+            "rejected_by_reason": s.rejections.iter().map(|(why, n)| (why.to_string(), json!(n))).collect::<serde_json::Map<_, _>>(),
+            "last_reject": s.last_reject,
+            "markers_unrecorded": s.markers_unrecorded,
         },
         "late_events": t.late,
         "non_finite": t.non_finite,

@@ -175,8 +175,9 @@ impl AudioLoop {
             return Err(unsupported(
                 &cfg.output,
                 format!(
-                    "output channel {} of a {} channel stream (channels count from 0)",
-                    cfg.out_channel, cfg.output.channels
+                    "output channel {} of a {} channel stream (channels count from 1)",
+                    u32::from(cfg.out_channel) + 1,
+                    cfg.output.channels
                 ),
             ));
         }
@@ -184,8 +185,9 @@ impl AudioLoop {
             return Err(unsupported(
                 &cfg.input,
                 format!(
-                    "input channel {} of a {} channel stream (channels count from 0)",
-                    cfg.in_channel, cfg.input.channels
+                    "input channel {} of a {} channel stream (channels count from 1)",
+                    u32::from(cfg.in_channel) + 1,
+                    cfg.input.channels
                 ),
             ));
         }

@@ -1,12 +1,19 @@
 //! Force, steps and material changes from OSC over UDP, as a VR engine sends them.
 //!
-//! # Addresses
+//! # Addresses (protocol 2)
 //!
 //! | address | arguments | event |
 //! |---|---|---|
-//! | `/underfoot/force` | channel, then 1 to 8 forces in newtons | [`Event::Force`] |
-//! | `/underfoot/step` | channel, optional intensity (default 1.0) | [`Event::Step`] |
-//! | `/underfoot/material` | channel, material name (string) | [`Event::Material`] |
+//! | `/underfoot/v2/force` | channel, then 1 to 8 forces in newtons | [`Event::Force`] |
+//! | `/underfoot/v2/step` | channel, optional intensity (default 1.0) | [`Event::Step`] |
+//! | `/underfoot/v2/material` | channel, material name (string) | [`Event::Material`] |
+//! | `/underfoot/v2/marker` | text, then optionally trial (int), participant, condition (strings) | a [`Marker`] for the session's record |
+//!
+//! Channels count from 1, as audio tools number ports and as every other place a person
+//! reads or types a channel (the status, the panel, the flags): channel 1 is the engine's
+//! first. Protocol 1 (`/underfoot/force` and its siblings, channels from 0) is refused,
+//! each message counted as [`OscReject::OldProtocol`], rather than obeyed: the same
+//! numbers would drive the wrong actuator.
 //!
 //! A step plays for [`STEP_WINDOW`](crate::engine::event::STEP_WINDOW) (0.5 s) and the
 //! channel is silent within 100 ms after it, unless more steps or forces arrive: a sender
@@ -41,17 +48,28 @@ use std::time::Duration;
 use super::{EventSource, IoError, SourceState, SourceStats};
 use crate::engine::Event;
 use crate::force::{MAX_SENSORS, SensorReading};
+use crate::io::marker::Marker;
 
 pub mod wire;
 
 use wire::{Arg, Malformed, Message};
 
+/// The protocol's version, in every address.
+pub const PROTOCOL: u32 = 2;
 /// The address of force readings.
-pub const FORCE_ADDRESS: &str = "/underfoot/force";
+pub const FORCE_ADDRESS: &str = "/underfoot/v2/force";
 /// The address of explicit steps.
-pub const STEP_ADDRESS: &str = "/underfoot/step";
+pub const STEP_ADDRESS: &str = "/underfoot/v2/step";
 /// The address of material changes.
-pub const MATERIAL_ADDRESS: &str = "/underfoot/material";
+pub const MATERIAL_ADDRESS: &str = "/underfoot/v2/material";
+/// The address of markers.
+pub const MARKER_ADDRESS: &str = "/underfoot/v2/marker";
+/// Protocol 1's addresses (channels from 0), refused as [`OscReject::OldProtocol`].
+pub const PROTOCOL_1_ADDRESSES: [&str; 3] =
+    ["/underfoot/force", "/underfoot/step", "/underfoot/material"];
+
+/// Markers waiting for the session, at most: a flood of them is counted, not queued.
+const MAX_PENDING_MARKERS: usize = 256;
 
 /// The deepest nesting of bundles accepted. Real senders nest one or two levels; the limit
 /// keeps a hostile packet from recursing the decoder off the end of its thread's stack.
@@ -70,14 +88,20 @@ pub enum OscReject {
     /// Bundles nested deeper than [`MAX_BUNDLE_DEPTH`].
     #[error("bundles nested deeper than {MAX_BUNDLE_DEPTH}")]
     TooDeep,
-    /// Not one of the three addresses.
+    /// Not one of the protocol's addresses.
     #[error("unknown address")]
     UnknownAddress,
+    /// An address of protocol 1, whose channels counted from 0.
+    #[error(
+        "an address of protocol 1 (channels from 0); this build speaks protocol 2: \
+         /underfoot/v2/force, /step, /material, /marker, with channels from 1"
+    )]
+    OldProtocol,
     /// The wrong number or types of arguments for the address.
     #[error("wrong number or types of arguments")]
     Arguments,
-    /// A channel outside `0..channels`.
-    #[error("channel {0} out of range")]
+    /// A channel outside `1..=channels`.
+    #[error("channel {0} is not one of the session's (they count from 1)")]
     Channel(i64),
     /// A material name not in the table.
     #[error("unknown material")]
@@ -85,6 +109,19 @@ pub enum OscReject {
     /// A non-finite force, or a non-finite or negative intensity.
     #[error("non-finite force or bad intensity")]
     Value,
+    /// A marker the record cannot take (no text, too long, a control character), or
+    /// too many markers waiting.
+    #[error("a marker without text, too long, or with a control character")]
+    Marker,
+}
+
+/// What a message decodes to: an event for the engine, or a marker for the record.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Decoded {
+    /// An event for the engine.
+    Event(Event),
+    /// A marker for the session's record.
+    Marker(Marker),
 }
 
 /// Rejections so far, one count per [`OscReject`] reason; they add up to
@@ -105,6 +142,10 @@ pub struct OscRejectCounts {
     pub unknown_material: u64,
     /// [`OscReject::Value`].
     pub value: u64,
+    /// [`OscReject::OldProtocol`].
+    pub old_protocol: u64,
+    /// [`OscReject::Marker`].
+    pub marker: u64,
 }
 
 impl OscRejectCounts {
@@ -118,6 +159,8 @@ impl OscRejectCounts {
             OscReject::Channel(_) => &mut self.channel,
             OscReject::UnknownMaterial => &mut self.unknown_material,
             OscReject::Value => &mut self.value,
+            OscReject::OldProtocol => &mut self.old_protocol,
+            OscReject::Marker => &mut self.marker,
         };
         *count += 1;
     }
@@ -131,11 +174,14 @@ impl OscRejectCounts {
             + self.channel
             + self.unknown_material
             + self.value
+            + self.old_protocol
+            + self.marker
     }
 
     /// Each reason with a name for a person and its count, in a fixed order, zeros included.
-    pub fn by_reason(&self) -> [(&'static str, u64); 7] {
+    pub fn by_reason(&self) -> [(&'static str, u64); 9] {
         [
+            ("protocol 1 address", self.old_protocol),
             ("not OSC", self.not_osc),
             ("bundles too deep", self.too_deep),
             ("unknown address", self.unknown_address),
@@ -143,6 +189,7 @@ impl OscRejectCounts {
             ("channel out of range", self.channel),
             ("unknown material", self.unknown_material),
             ("bad value", self.value),
+            ("bad marker", self.marker),
         ]
     }
 }
@@ -188,7 +235,7 @@ impl OscDecoder {
 
     /// Decodes one datagram; hands `out` each event, or why a message (or the whole packet)
     /// was rejected, in the packet's order.
-    pub fn decode(&self, datagram: &[u8], out: &mut dyn FnMut(Result<Event, OscReject>)) {
+    pub fn decode(&self, datagram: &[u8], out: &mut dyn FnMut(Result<Decoded, OscReject>)) {
         match wire::parse(datagram, MAX_BUNDLE_DEPTH) {
             Ok(messages) => {
                 for m in &messages {
@@ -200,14 +247,26 @@ impl OscDecoder {
         }
     }
 
-    fn message(&self, m: &Message<'_>) -> Result<Event, OscReject> {
+    fn message(&self, m: &Message<'_>) -> Result<Decoded, OscReject> {
+        if PROTOCOL_1_ADDRESSES.contains(&m.address) {
+            return Err(OscReject::OldProtocol);
+        }
         let Some((first, rest)) = m.args.split_first() else {
             return Err(match m.address {
-                FORCE_ADDRESS | STEP_ADDRESS | MATERIAL_ADDRESS => OscReject::Arguments,
+                FORCE_ADDRESS | STEP_ADDRESS | MATERIAL_ADDRESS | MARKER_ADDRESS => {
+                    OscReject::Arguments
+                }
                 _ => OscReject::UnknownAddress,
             });
         };
-        match m.address {
+        if m.address == MARKER_ADDRESS {
+            return marker(first, rest).map(Decoded::Marker);
+        }
+        self.event(m.address, first, rest).map(Decoded::Event)
+    }
+
+    fn event(&self, address: &str, first: &Arg<'_>, rest: &[Arg<'_>]) -> Result<Event, OscReject> {
+        match address {
             FORCE_ADDRESS => {
                 let channel = self.channel(first)?;
                 if rest.is_empty() || rest.len() > MAX_SENSORS {
@@ -261,11 +320,46 @@ impl OscDecoder {
             Arg::Double(d) => whole(d)?,
             _ => return Err(OscReject::Arguments),
         };
+        // Channel 1 is the engine's first.
         match usize::try_from(ch) {
-            Ok(c) if c < self.channels => u16::try_from(c).map_err(|_| OscReject::Channel(ch)),
+            Ok(c) if (1..=self.channels).contains(&c) => {
+                u16::try_from(c - 1).map_err(|_| OscReject::Channel(ch))
+            }
             _ => Err(OscReject::Channel(ch)),
         }
     }
+}
+
+/// A marker's arguments: its text, then optionally its trial (a whole number), its
+/// participant and its condition.
+fn marker(first: &Arg<'_>, rest: &[Arg<'_>]) -> Result<Marker, OscReject> {
+    let Arg::Str(text) = *first else {
+        return Err(OscReject::Arguments);
+    };
+    let mut m = Marker::new(text);
+    let mut rest = rest.iter();
+    if let Some(trial) = rest.next() {
+        let t = match *trial {
+            Arg::Int(i) => i64::from(i),
+            Arg::Long(l) => l,
+            Arg::Float(f) => whole(f64::from(f))?,
+            Arg::Double(d) => whole(d)?,
+            _ => return Err(OscReject::Arguments),
+        };
+        m.trial = Some(u32::try_from(t).map_err(|_| OscReject::Arguments)?);
+    }
+    for field in [&mut m.participant, &mut m.condition] {
+        match rest.next() {
+            Some(Arg::Str(s)) => *field = Some((*s).to_owned()),
+            Some(_) => return Err(OscReject::Arguments),
+            None => break,
+        }
+    }
+    if rest.next().is_some() {
+        return Err(OscReject::Arguments);
+    }
+    m.check().map_err(|_| OscReject::Marker)?;
+    Ok(m)
 }
 
 /// A float channel number as an integer, if it is a whole one.
@@ -305,6 +399,8 @@ pub struct OscSource {
     rejections: OscRejectCounts,
     /// The most recent rejection, so that a log can say what the last refused message did wrong.
     last_reject: Option<OscReject>,
+    /// Markers received, waiting for the session to take them.
+    markers: std::collections::VecDeque<Marker>,
 }
 
 impl std::fmt::Debug for OscSource {
@@ -349,6 +445,7 @@ impl OscSource {
             stats: SourceStats::default(),
             rejections: OscRejectCounts::default(),
             last_reject: None,
+            markers: std::collections::VecDeque::new(),
         })
     }
 
@@ -413,11 +510,21 @@ impl OscSource {
         let stats = &mut self.stats;
         let rejections = &mut self.rejections;
         let last_reject = &mut self.last_reject;
+        let markers = &mut self.markers;
         self.decoder
             .decode(&self.buf[..n], &mut |result| match result {
-                Ok(event) => {
+                Ok(Decoded::Event(event)) => {
                     stats.events += 1;
                     out(event);
+                }
+                Ok(Decoded::Marker(marker)) if markers.len() < MAX_PENDING_MARKERS => {
+                    stats.events += 1;
+                    markers.push_back(marker);
+                }
+                Ok(Decoded::Marker(_)) => {
+                    stats.rejected += 1;
+                    rejections.record(&OscReject::Marker);
+                    *last_reject = Some(OscReject::Marker);
                 }
                 Err(reject) => {
                     stats.rejected += 1;
@@ -447,6 +554,22 @@ impl EventSource for OscSource {
 
     fn stats(&self) -> SourceStats {
         self.stats
+    }
+
+    fn take_marker(&mut self) -> Option<Marker> {
+        self.markers.pop_front()
+    }
+
+    fn rejections(&self) -> Vec<(&'static str, u64)> {
+        self.rejections
+            .by_reason()
+            .into_iter()
+            .filter(|(_, n)| *n > 0)
+            .collect()
+    }
+
+    fn last_reject(&self) -> Option<String> {
+        self.last_reject.map(|r| r.to_string())
     }
 }
 

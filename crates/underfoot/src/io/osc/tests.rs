@@ -1,5 +1,6 @@
 use super::*;
 use crate::signal::noise::SplitMix64;
+use Arg::Int;
 use proptest::prelude::*;
 use std::time::Instant;
 use wire::{encode_bundle, encode_message};
@@ -18,9 +19,26 @@ fn names() -> Vec<String> {
     ["gravel", "snow", "wood"].map(String::from).to_vec()
 }
 
+/// The events (and rejections) of a datagram; a marker is a test failure here.
 fn decoded(d: &OscDecoder, datagram: &[u8]) -> Vec<Result<Event, OscReject>> {
     let mut v = Vec::new();
-    d.decode(datagram, &mut |r| v.push(r));
+    d.decode(datagram, &mut |r| {
+        v.push(r.map(|d| match d {
+            Decoded::Event(e) => e,
+            Decoded::Marker(m) => panic!("a marker: {m:?}"),
+        }));
+    });
+    v
+}
+
+fn decoded_markers(d: &OscDecoder, datagram: &[u8]) -> Vec<Result<Marker, OscReject>> {
+    let mut v = Vec::new();
+    d.decode(datagram, &mut |r| {
+        v.push(r.map(|d| match d {
+            Decoded::Marker(m) => m,
+            Decoded::Event(e) => panic!("an event: {e:?}"),
+        }));
+    });
     v
 }
 
@@ -36,29 +54,29 @@ fn good() -> Vec<(Vec<u8>, Vec<Event>)> {
     use Arg::{Double, Float, Int, Long, Str};
     vec![
         (
-            msg(FORCE_ADDRESS, vec![Int(1), Float(612.5)]),
+            msg(FORCE_ADDRESS, vec![Int(2), Float(612.5)]),
             vec![force(1, &[612.5])],
         ),
         (
-            msg(FORCE_ADDRESS, vec![Float(0.0), Int(300), Double(2.5)]),
+            msg(FORCE_ADDRESS, vec![Float(1.0), Int(300), Double(2.5)]),
             vec![force(0, &[300.0, 2.5])],
         ),
         (
-            msg(STEP_ADDRESS, vec![Int(1)]),
+            msg(STEP_ADDRESS, vec![Int(2)]),
             vec![Event::Step {
                 channel: 1,
                 intensity: 1.0,
             }],
         ),
         (
-            msg(STEP_ADDRESS, vec![Long(0), Int(2)]),
+            msg(STEP_ADDRESS, vec![Long(1), Int(2)]),
             vec![Event::Step {
                 channel: 0,
                 intensity: 2.0,
             }],
         ),
         (
-            msg(MATERIAL_ADDRESS, vec![Int(1), Str("wood")]),
+            msg(MATERIAL_ADDRESS, vec![Int(2), Str("wood")]),
             vec![Event::Material {
                 channel: 1,
                 slot: 2,
@@ -66,9 +84,9 @@ fn good() -> Vec<(Vec<u8>, Vec<Event>)> {
         ),
         (
             bundle(vec![
-                msg(MATERIAL_ADDRESS, vec![Int(0), Str("snow")]),
-                bundle(vec![msg(STEP_ADDRESS, vec![Int(0), Float(0.5)])]),
-                msg(FORCE_ADDRESS, vec![Int(0), Float(1.0), Float(2.0)]),
+                msg(MATERIAL_ADDRESS, vec![Int(1), Str("snow")]),
+                bundle(vec![msg(STEP_ADDRESS, vec![Int(1), Float(0.5)])]),
+                msg(FORCE_ADDRESS, vec![Int(1), Float(1.0), Float(2.0)]),
             ]),
             vec![
                 Event::Material {
@@ -86,7 +104,7 @@ fn good() -> Vec<(Vec<u8>, Vec<Event>)> {
 }
 
 fn nested(levels: usize) -> Vec<u8> {
-    let mut p = msg(STEP_ADDRESS, vec![Arg::Int(0)]);
+    let mut p = msg(STEP_ADDRESS, vec![Int(1)]);
     for _ in 0..levels {
         p = bundle(vec![p]);
     }
@@ -98,7 +116,7 @@ fn malformed() -> Vec<(&'static str, Vec<u8>, OscReject)> {
     use Arg::{Float, Int, Str};
     let mut noise = SplitMix64::new(7);
     let random: Vec<u8> = (0..97).map(|_| noise.next_u64() as u8).collect();
-    let mut truncated = msg(FORCE_ADDRESS, vec![Int(0), Float(1.0)]);
+    let mut truncated = msg(FORCE_ADDRESS, vec![Int(1), Float(1.0)]);
     truncated.truncate(truncated.len() - 3);
     vec![
         ("random bytes", random, OscReject::NotOsc),
@@ -111,19 +129,19 @@ fn malformed() -> Vec<(&'static str, Vec<u8>, OscReject)> {
         ),
         (
             "force as a string",
-            msg(FORCE_ADDRESS, vec![Int(0), Str("heavy")]),
+            msg(FORCE_ADDRESS, vec![Int(1), Str("heavy")]),
             OscReject::Arguments,
         ),
         (
             "force without a value",
-            msg(FORCE_ADDRESS, vec![Int(0)]),
+            msg(FORCE_ADDRESS, vec![Int(1)]),
             OscReject::Arguments,
         ),
         (
             "nine sensors",
             msg(
                 FORCE_ADDRESS,
-                std::iter::once(Int(0))
+                std::iter::once(Int(1))
                     .chain(std::iter::repeat_n(Float(1.0), 9))
                     .collect(),
             ),
@@ -141,8 +159,23 @@ fn malformed() -> Vec<(&'static str, Vec<u8>, OscReject)> {
         ),
         (
             "channel too high",
-            msg(STEP_ADDRESS, vec![Int(2)]),
-            OscReject::Channel(2),
+            msg(STEP_ADDRESS, vec![Int(3)]),
+            OscReject::Channel(3),
+        ),
+        (
+            "channel 0 (channels count from 1)",
+            msg(FORCE_ADDRESS, vec![Int(0), Float(1.0)]),
+            OscReject::Channel(0),
+        ),
+        (
+            "a protocol-1 address",
+            msg("/underfoot/force", vec![Int(0), Float(1.0)]),
+            OscReject::OldProtocol,
+        ),
+        (
+            "a protocol-1 step without arguments",
+            msg("/underfoot/step", vec![]),
+            OscReject::OldProtocol,
         ),
         (
             "negative channel",
@@ -151,27 +184,27 @@ fn malformed() -> Vec<(&'static str, Vec<u8>, OscReject)> {
         ),
         (
             "unknown material",
-            msg(MATERIAL_ADDRESS, vec![Int(0), Str("lava")]),
+            msg(MATERIAL_ADDRESS, vec![Int(1), Str("lava")]),
             OscReject::UnknownMaterial,
         ),
         (
             "material as a slot number",
-            msg(MATERIAL_ADDRESS, vec![Int(0), Int(1)]),
+            msg(MATERIAL_ADDRESS, vec![Int(1), Int(1)]),
             OscReject::Arguments,
         ),
         (
             "NaN force",
-            msg(FORCE_ADDRESS, vec![Int(0), Float(1.0), Float(f32::NAN)]),
+            msg(FORCE_ADDRESS, vec![Int(1), Float(1.0), Float(f32::NAN)]),
             OscReject::Value,
         ),
         (
             "infinite force",
-            msg(FORCE_ADDRESS, vec![Int(0), Arg::Double(1e300)]),
+            msg(FORCE_ADDRESS, vec![Int(1), Arg::Double(1e300)]),
             OscReject::Value,
         ),
         (
             "negative intensity",
-            msg(STEP_ADDRESS, vec![Int(0), Float(-1.0)]),
+            msg(STEP_ADDRESS, vec![Int(1), Float(-1.0)]),
             OscReject::Value,
         ),
         ("bundles too deep", nested(20), OscReject::TooDeep),
@@ -200,16 +233,68 @@ fn malformed_packets_say_why() {
     }
     // A bad message in a bundle costs only itself.
     let mixed = bundle(vec![
-        msg(STEP_ADDRESS, vec![Arg::Int(5)]),
-        msg(STEP_ADDRESS, vec![Arg::Int(1)]),
+        msg(STEP_ADDRESS, vec![Int(6)]),
+        msg(STEP_ADDRESS, vec![Int(2)]),
     ]);
     let got = decoded(&d, &mixed);
-    assert_eq!(got[0], Err(OscReject::Channel(5)));
+    assert_eq!(got[0], Err(OscReject::Channel(6)));
     assert!(got[1].is_ok());
     // Bytes after a message make the packet suspect.
-    let mut trailing = msg(STEP_ADDRESS, vec![Arg::Int(1)]);
+    let mut trailing = msg(STEP_ADDRESS, vec![Int(2)]);
     trailing.extend([0, 0, 0, 0]);
     assert_eq!(decoded(&d, &trailing), vec![Err(OscReject::NotOsc)]);
+}
+
+#[test]
+fn markers_carry_their_trial_fields_and_bad_ones_say_why() {
+    use Arg::{Int, Str};
+    let d = OscDecoder::new(names(), 2).unwrap();
+    let got = decoded_markers(
+        &d,
+        &msg(
+            MARKER_ADDRESS,
+            vec![
+                Str("trial 3 starts"),
+                Int(3),
+                Str("P07"),
+                Str("gravel first"),
+            ],
+        ),
+    );
+    assert_eq!(
+        got,
+        vec![Ok(Marker {
+            trial: Some(3),
+            participant: Some("P07".into()),
+            condition: Some("gravel first".into()),
+            ..Marker::new("trial 3 starts")
+        })]
+    );
+    assert_eq!(
+        decoded_markers(&d, &msg(MARKER_ADDRESS, vec![Str("note")])),
+        vec![Ok(Marker::new("note"))]
+    );
+    for (what, args, why) in [
+        ("no text", vec![Int(1)], OscReject::Arguments),
+        (
+            "a negative trial",
+            vec![Str("x"), Int(-1)],
+            OscReject::Arguments,
+        ),
+        ("a line break", vec![Str("a\nb")], OscReject::Marker),
+        ("empty", vec![Str(" ")], OscReject::Marker),
+        (
+            "five arguments",
+            vec![Str("x"), Int(1), Str("p"), Str("c"), Str("?")],
+            OscReject::Arguments,
+        ),
+    ] {
+        assert_eq!(
+            decoded_markers(&d, &msg(MARKER_ADDRESS, args)),
+            vec![Err(why)],
+            "{what}"
+        );
+    }
 }
 
 #[test]
@@ -271,7 +356,7 @@ fn udp_round_trip() {
     for (_, datagram, _) in &bad {
         sender.send_to(datagram, to).unwrap();
     }
-    let after = msg(STEP_ADDRESS, vec![Arg::Int(1), Arg::Float(0.25)]);
+    let after = msg(STEP_ADDRESS, vec![Int(2), Arg::Float(0.25)]);
     sender.send_to(&after, to).unwrap();
     let got = receive(&mut source, 1);
     assert_eq!(
@@ -343,7 +428,7 @@ proptest! {
         datagram.truncate(cut % (datagram.len() + 1));
         let mut events = 0;
         d.decode(&datagram, &mut |r| {
-            if let Ok(e) = r {
+            if let Ok(Decoded::Event(e)) = r {
                 events += 1;
                 // Whatever got through is within the table.
                 assert!(usize::from(e.channel()) < 2);

@@ -1,4 +1,4 @@
-// The control panel's page: a WebSocket of status (40 to 60 a second) drawn as meters
+// The control panel's page: a WebSocket of status (about 50 a second) drawn as meters
 // and timelines, and the JSON API for steering, the library and fitting. Plain
 // JavaScript, no build step, no network beyond the panel itself.
 "use strict";
@@ -139,7 +139,7 @@ function addChannel(index) {
   const gain = $(".gain", root);
   gain.addEventListener("input", () => { $(".gain-value", root).textContent = `${gain.value} dB`; });
   gain.addEventListener("change", () =>
-    api("POST", `/api/channels/${index}/gain`, { trim_db: Number(gain.value) }).catch((e) => banner(`gain: ${e.message}`, true)));
+    api("POST", `/api/v2/channels/${index + 1}/gain`, { trim_db: Number(gain.value) }).catch((e) => banner(`gain: ${e.message}`, true)));
   $("#channels").append(root);
   view.channels.push(ch);
   fillMaterials(ch);
@@ -264,7 +264,7 @@ async function steer(index, ch) {
   const entry = view.catalog.find((m) => m.name === ch.select.value);
   const use = model === "physical" && entry && entry.slots.physical == null ? "iir" : model;
   try {
-    await api("POST", `/api/channels/${index}/material`, { material: ch.select.value, model: use });
+    await api("POST", `/api/v2/channels/${index + 1}/material`, { material: ch.select.value, model: use });
   } catch (e) {
     banner(`channel ${index + 1}: ${e.message}`, true);
   }
