@@ -211,12 +211,10 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         args.synth.ceiling_db,
         seconds / elapsed.max(1e-9),
     ))?;
-    if t.limited > 0 {
-        eprintln!(
-            "underfoot: warning: the limiter reduced {} sample(s); lower --gain-db to keep the \
-             recorded shape",
-            t.limited
-        );
+    if let Some(warning) =
+        crate::commands::run::status::limiter_warning(&t, args.synth.gain_db, args.synth.ceiling_db)
+    {
+        eprintln!("underfoot: warning: {warning}");
     }
     if t.non_finite > 0 || summary.clipped_samples > 0 {
         eprintln!(

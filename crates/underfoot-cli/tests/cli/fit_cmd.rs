@@ -547,3 +547,49 @@ fn fit_report_gives_leave_one_out_on_gravel() {
         serde_json::from_slice(&fs::read(&report).expect("report")).expect("json");
     assert!(r["materials"][0]["leave_one_out"].is_null());
 }
+
+/// A set of recordings that mixes materials fits its mean spectrum well: only leaving
+/// each recording out shows it, and `fit` says so without `--report`, naming the odd
+/// recording. A material's own takes raise no warning.
+#[test]
+#[ignore = "slow tier: real recordings"]
+fn fit_names_the_recording_that_does_not_belong() {
+    let Some(data) = footsteps_dir() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("lab.json");
+    let files = |m: &str| -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(data.join(m))
+            .unwrap()
+            .flatten()
+            .map(|e| e.path().display().to_string())
+            .collect();
+        v.sort();
+        v
+    };
+    for (name, set, odd) in [
+        (
+            "gravel-glass",
+            [files("gravel"), files("glass")].concat(),
+            Some("default_glass_footstep.ogg"),
+        ),
+        (
+            "snow-metal",
+            [files("snow"), files("metal")[1..].to_vec()].concat(),
+            Some("default_metal_footstep.2.ogg"),
+        ),
+        ("gravel", files("gravel"), None),
+        ("snow", files("snow"), None),
+    ] {
+        let mut args = vec!["fit", "--material", name, "--out", s(&out)];
+        args.extend(set.iter().map(String::as_str));
+        let o = run(&args);
+        assert_ok(&o);
+        let err = stderr(&o);
+        match odd {
+            Some(file) => assert!(err.contains(&format!("{file} stands out")), "{name}: {err}"),
+            None => assert!(!err.contains("stands out"), "{name}: {err}"),
+        }
+    }
+}

@@ -219,3 +219,66 @@ fn the_step_threshold_is_a_flag() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("from 1 to 5000"));
 }
+
+/// The limiter's warning says how far over the ceiling the loudest moment went and the
+/// gain that fits; rendered at that gain, nothing is limited. `run` warns the same way.
+#[test]
+fn the_limiter_warning_gives_the_gain_that_fits() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("loud.wav");
+    let render = |gain: &str| {
+        let o = crate::common::run(&[
+            "render",
+            "--material",
+            "snow",
+            "--gait",
+            "steps=6",
+            "--gain-db",
+            gain,
+            "--out",
+            crate::common::s(&out),
+        ]);
+        crate::common::assert_ok(&o);
+        crate::common::stderr(&o)
+    };
+    let err = render("20");
+    assert!(err.contains("dB over the ceiling (-6.0 dBFS)"), "{err}");
+    let fits = err
+        .split("--gain-db ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .unwrap_or_else(|| panic!("{err}"))
+        .to_owned();
+    let over: f64 = err
+        .split("went ")
+        .nth(1)
+        .unwrap()
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(
+        over > 3.0 && (20.0 - over - fits.parse::<f64>().unwrap()).abs() < 0.11,
+        "{err}"
+    );
+    let quiet = render(&fits);
+    assert!(!quiet.contains("limiter"), "at --gain-db {fits}: {quiet}");
+    let o = crate::common::run(&[
+        "run",
+        "--material",
+        "snow",
+        "--input",
+        "gait:steps=2,lead_in=0.1,tail=0.1",
+        "--output",
+        "null",
+        "--gain-db",
+        "20",
+    ]);
+    crate::common::assert_ok(&o);
+    assert!(
+        crate::common::stderr(&o).contains("dB over the ceiling"),
+        "{}",
+        crate::common::stderr(&o)
+    );
+}

@@ -26,6 +26,9 @@ pub struct Telemetry {
     pub(super) equalizer_updates: AtomicU64,
     pub(super) equalizer_refused: AtomicU64,
     pub(super) unlogged_strikes: AtomicU64,
+    /// The limiter's smallest gain over the whole run, of any played channel (`f32`
+    /// bits; 1.0: it never acted).
+    pub(super) min_gain_bits: AtomicU32,
     /// One meter per engine channel, allocated with the engine.
     pub(super) channels: Box<[ChannelMeter]>,
 }
@@ -264,6 +267,8 @@ impl Telemetry {
     }
 
     pub(super) fn meter_block(&self, c: usize, block: &BlockLevels) {
+        self.min_gain_bits
+            .fetch_min(block.min_gain.to_bits(), Ordering::Relaxed);
         if let Some(m) = self.channels.get(c) {
             // Peaks are non-negative (absolute values) and finite (after the limiter;
             // the drive is checked by whoever measured it), so their bits order as
@@ -305,6 +310,7 @@ impl Default for Telemetry {
             equalizer_updates: AtomicU64::new(0),
             equalizer_refused: AtomicU64::new(0),
             unlogged_strikes: AtomicU64::new(0),
+            min_gain_bits: AtomicU32::new(1.0f32.to_bits()),
             channels: Box::new([]),
         }
     }
@@ -349,6 +355,9 @@ pub struct TelemetrySnapshot {
     /// Strikes that found the strike log full ([`super::StrikeRecord`]): counted, but
     /// missing from a session's record.
     pub unlogged_strikes: u64,
+    /// The limiter's smallest gain over the whole run, of any played channel (1.0: it
+    /// never acted): the loudest moment went `-20 log10` of it over the ceiling.
+    pub limiter_min_gain: f32,
 }
 
 impl Telemetry {
@@ -403,6 +412,7 @@ impl Telemetry {
             equalizer_updates: self.equalizer_updates.load(Ordering::Relaxed),
             equalizer_refused: self.equalizer_refused.load(Ordering::Relaxed),
             unlogged_strikes: self.unlogged_strikes.load(Ordering::Relaxed),
+            limiter_min_gain: f32::from_bits(self.min_gain_bits.load(Ordering::Relaxed)),
         }
     }
 }

@@ -210,7 +210,13 @@ fn a_remote_steers_a_running_session_from_another_thread() {
                 slot: sand,
             })
             .unwrap_err();
-        assert!(refused.to_string().contains("channel 3"), "{refused}");
+        // Index 3 is the person's channel 4: the message uses their number.
+        assert!(
+            refused
+                .to_string()
+                .contains("channel 4: the session plays 1"),
+            "{refused}"
+        );
         let mut snow = PreparedMaterial::prepare(
             builtin().get("snow").unwrap(),
             RATE,

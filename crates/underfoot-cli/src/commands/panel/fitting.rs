@@ -266,9 +266,11 @@ fn fit(
         _ => {}
     })?;
     progress("checking: leave one recording out".into());
-    let loo = leave_one_out(&recordings, &cfg, &model)?
+    let left_out = leave_one_out(&recordings, &cfg, &model)?;
+    let odd = left_out
         .as_ref()
-        .map(LeaveOneOutReport::of);
+        .and_then(|l| crate::report::generalisation_warning(&model, l));
+    let loo = left_out.as_ref().map(LeaveOneOutReport::of);
     // Prepared before anything is written: a material the engine cannot take fails the
     // fit with the library untouched. Once written, the fit is never reported failed.
     progress("preparing it for the engine".into());
@@ -291,6 +293,10 @@ fn fit(
         }
         _ => "Kept for this session only (start the panel with --library FILE to save fits)"
             .to_owned(),
+    };
+    let saved = match odd {
+        Some(warning) => format!("{saved}. Warning: {warning}"),
+        None => saved,
     };
     // Saved already: from here on, a session that is not running, or that ended
     // meanwhile, makes a note on the saved fit, not a failure.

@@ -445,11 +445,16 @@ pub fn truncate(s: &str) -> String {
 /// The session's side of the panel: what it plays, its status, its end.
 pub struct PanelObserver {
     shared: Arc<Shared>,
+    /// The output gain and the limiter's ceiling, in dB, for the limiter's warning.
+    limits: Option<(f64, f64)>,
 }
 
 impl PanelObserver {
     pub fn new(shared: Arc<Shared>) -> Self {
-        Self { shared }
+        Self {
+            shared,
+            limits: None,
+        }
     }
 }
 
@@ -534,7 +539,8 @@ impl Observer for PanelObserver {
         Ok(Some(slots))
     }
 
-    fn started(&mut self, session: &RunningSession, _setup: &Setup) {
+    fn started(&mut self, session: &RunningSession, setup: &Setup) {
+        self.limits = Some((setup.config.gain.0, setup.config.ceiling.0));
         let mut view = self.shared.session();
         view.remote = Some(session.remote());
         view.describe = crate::commands::run::describe(session.output());
@@ -560,16 +566,27 @@ impl Observer for PanelObserver {
                 Some(event) => {
                     format!("the input was lost ({event}) and --exit-on-disconnect is set")
                 }
-                None => format!(
-                    "the session ended after {:.1} s: {}",
-                    summary.elapsed.as_secs_f64(),
-                    match summary.ended {
-                        EndReason::RemoteStop => "STOP was pressed".to_owned(),
-                        EndReason::Stopped => "the panel was asked to quit (Ctrl-C)".to_owned(),
-                        EndReason::Duration => "--duration was over".to_owned(),
-                        other => other.to_string(),
-                    }
-                ),
+                None => {
+                    format!(
+                        "the session ended after {:.1} s: {}",
+                        summary.elapsed.as_secs_f64(),
+                        match summary.ended {
+                            EndReason::RemoteStop => "STOP was pressed".to_owned(),
+                            EndReason::Stopped => "the panel was asked to quit (Ctrl-C)".to_owned(),
+                            EndReason::Duration => "--duration was over".to_owned(),
+                            other => other.to_string(),
+                        }
+                    ) + &self
+                        .limits
+                        .and_then(|(gain, ceiling)| {
+                            crate::commands::run::status::limiter_warning(
+                                &summary.telemetry,
+                                gain,
+                                ceiling,
+                            )
+                        })
+                        .map_or_else(String::new, |w| format!(". Warning: {w}"))
+                }
             }),
             Err(e) => Phase::Failed(crate::message::chain(e)),
         };

@@ -570,6 +570,13 @@ pub fn run_session(
     }
     let summary = summary?;
     emit(&report(&summary))?;
+    if let Some(warning) = status::limiter_warning(
+        &summary.telemetry,
+        args.synth.gain_db,
+        args.synth.ceiling_db,
+    ) {
+        eprintln!("underfoot: warning: {warning}");
+    }
     if let (Some(out), Some((status, weights))) = (&adapt_out, &summary.adapt) {
         let realisation = setup
             .config

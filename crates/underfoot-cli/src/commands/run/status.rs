@@ -111,6 +111,30 @@ pub fn block(s: &Status) -> Vec<String> {
     lines
 }
 
+/// The limiter's warning, the same for `render`, `run` and `panel`: how many samples it
+/// reduced, how far over the ceiling the loudest moment went, and the `--gain-db` that
+/// would have fitted it (the limiter's smallest gain taken off the gain used). `None`
+/// when it never acted.
+#[must_use]
+pub fn limiter_warning(
+    t: &underfoot::engine::TelemetrySnapshot,
+    gain_db: f64,
+    ceiling_db: f64,
+) -> Option<String> {
+    if t.limited == 0 {
+        return None;
+    }
+    let over_db = -20.0 * f64::from(t.limiter_min_gain.clamp(1e-6, 1.0)).log10();
+    // Rounded down to a tenth of a dB: the gain said must fit, not nearly fit.
+    let fits = ((gain_db - over_db) * 10.0).floor() / 10.0;
+    Some(format!(
+        "the limiter reduced {} sample(s): the loudest moment went {over_db:.1} dB over the \
+         ceiling ({ceiling_db:.1} dBFS), and was flattened there; --gain-db {fits:.1} (or \
+         lower) keeps every step under it, with its recorded shape",
+        t.limited
+    ))
+}
+
 /// The adaptation's progress in one line (under 80 columns).
 #[must_use]
 pub fn adapt_line(a: &AdaptStatus) -> String {
