@@ -50,6 +50,10 @@ fn parse_step_threshold(s: &str) -> Result<f64, underfoot::io::spec::SpecError> 
 /// Synthesis settings.
 #[derive(Debug, Clone, Args)]
 pub struct SynthArgs {
+    /// Set by `panel`: a `--library` that does not exist yet plays the built-in
+    /// materials, and the first fit from the page creates it.
+    #[arg(skip)]
+    pub library_created_by_fits: bool,
     /// Library file to take materials from (default: the built-in library).
     #[arg(long, value_name = "FILE")]
     pub library: Option<PathBuf>,
@@ -185,11 +189,19 @@ impl SynthArgs {
             "--sensor-rate {} Hz: need 1 to 10000",
             self.sensor_rate
         );
-        let library = open(self.library.as_deref())?.into_owned();
-        let origin = self.library.as_ref().map_or_else(
-            || "the built-in library".to_string(),
-            |p| p.display().to_string(),
-        );
+        let not_yet =
+            self.library_created_by_fits && self.library.as_ref().is_some_and(|p| !p.exists());
+        let (library, origin) = match &self.library {
+            Some(p) if not_yet => (
+                open(None)?.into_owned(),
+                format!(
+                    "the built-in library ({} does not exist yet: the first fit creates it)",
+                    p.display()
+                ),
+            ),
+            Some(p) => (open(Some(p))?.into_owned(), p.display().to_string()),
+            None => (open(None)?.into_owned(), "the built-in library".to_string()),
+        };
         anyhow::ensure!(!library.materials.is_empty(), "{origin} has no materials");
         let rate = SampleRate(self.rate);
         let weight = Newtons::weight_of(self.weight_kg);

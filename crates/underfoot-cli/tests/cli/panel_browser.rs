@@ -468,6 +468,21 @@ fn the_panel_works_in_a_headless_browser() {
     );
     assert_eq!(events.last().unwrap()["reason"], "remote_stop");
 
+    // Started again from the page: a new session, the fit of the last one still listed
+    // (kept for the panel, there being no --library), recording into rec-2.
+    browser.click("#restart");
+    panel.wait_for(Duration::from_secs(20), "running again", |s| {
+        s["state"] == "running"
+    });
+    browser.wait_for(
+        Duration::from_secs(10),
+        "the page live again with the fit listed",
+        "return document.querySelector('#link').textContent === 'live' && \
+         document.querySelector('#restart').hidden && \
+         [...document.querySelectorAll('#library tbody tr')].some(r => r.dataset.material === 'lab-gravel') && \
+         document.querySelector('#record-where').textContent.includes('rec-2')",
+    );
+
     let errors = browser.console_errors();
     assert!(errors.is_empty(), "console errors: {errors:?}");
 }

@@ -69,6 +69,7 @@ pub fn router(shared: Arc<Shared>) -> Router {
         .route("/api/channels/{*rest}", any(protocol_1))
         .route("/api/stop", post(stop))
         .route("/api/markers", post(add_marker))
+        .route("/api/session/start", post(start_session))
         .route(
             "/api/uploads",
             post(upload).layer(DefaultBodyLimit::max(MAX_UPLOAD)),
@@ -404,6 +405,14 @@ async fn set_gain(
 async fn stop(State(shared): State<Arc<Shared>>) -> ApiResult {
     send(&shared, RemoteCommand::Stop).await?;
     Ok(json_response(json!({ "stopping": true }).to_string()))
+}
+
+/// A new session, once the last has ended.
+async fn start_session(State(shared): State<Arc<Shared>>) -> ApiResult {
+    shared
+        .request_restart()
+        .map_err(|why| error(StatusCode::CONFLICT, why))?;
+    Ok(json_response(json!({ "starting": true }).to_string()))
 }
 
 /// A marker into the session's record: refused (409, with why) when the session is not

@@ -15,7 +15,13 @@
 //!   to 0), `POST /api/stop`; `POST /api/uploads?name=FILE` (a recording's bytes),
 //!   `POST /api/fit` (`{"name": NAME, "uploads": [ID...]}`), `GET /api/fit/ID`;
 //!   `POST /api/markers` (`{"text": TEXT, "trial": N, "participant": P, "condition": C}`,
-//!   all but the text optional), a marker into the session's record (`--record DIR`).
+//!   all but the text optional), a marker into the session's record (`--record DIR`);
+//!   `POST /api/session/start`: a new session once the last has ended (the same
+//!   arguments; the library reloaded; a record into `DIR-2`, `DIR-3`...).
+//!
+//! A `--library` that does not exist yet plays the built-in materials, and the first fit
+//! from the page creates it. A session that fails to start (a broken library, a device
+//! that does not open) is shown on the page with its error, and can be started again.
 //!
 //! # Why axum
 //! axum on tokio and hyper: hyper is the most used HTTP implementation in Rust, fuzzed
@@ -151,19 +157,37 @@ pub fn run(args: &PanelArgs) -> anyhow::Result<()> {
             .context("starting the panel's server thread")?
     };
     let mut observer = state::PanelObserver::new(Arc::clone(&shared));
-    let outcome = run_session(&args.run, &stop, Some(&mut observer));
-    if let Err(e) = &outcome {
-        // The page says why; so does the terminal, now rather than after Ctrl-C.
+    // One session after another: the page starts the next when one has ended, with the
+    // same arguments (the library reloaded, so that fits saved into it play).
+    let mut outcome;
+    let mut n = 1;
+    loop {
+        let run = args.run.for_panel_session(n);
+        shared.set_record(run.record_path());
+        stop.store(false, Ordering::SeqCst);
+        outcome = run_session(&run, &stop, Some(&mut observer));
+        if let Err(e) = &outcome {
+            // The page says why; so does the terminal, now rather than after Ctrl-C.
+            eprintln!(
+                "underfoot: the session ended on an error: {}",
+                crate::message::chain(e)
+            );
+        }
+        if quit.load(Ordering::SeqCst) {
+            break;
+        }
         eprintln!(
-            "underfoot: the session ended on an error: {}",
-            crate::message::chain(e)
+            "underfoot: the session has ended; the panel stays up on {url} (start again from \
+             the page; Ctrl-C to quit)"
         );
-    }
-    if !quit.load(Ordering::SeqCst) {
-        eprintln!("underfoot: the session has ended; the panel stays up on {url} (Ctrl-C to quit)");
-        while !quit.load(Ordering::SeqCst) && !server.is_finished() {
+        while !quit.load(Ordering::SeqCst) && !server.is_finished() && !shared.take_restart() {
             thread::sleep(std::time::Duration::from_millis(50));
         }
+        if quit.load(Ordering::SeqCst) || server.is_finished() {
+            break;
+        }
+        n += 1;
+        eprintln!("underfoot: starting session {n}, asked from the page");
     }
     shared.shut_down();
     match server.join() {

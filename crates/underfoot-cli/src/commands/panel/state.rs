@@ -245,7 +245,8 @@ impl SessionView {
                     "peak_dbfs": dbfs(c.peak),
                     "rms_dbfs": dbfs(c.rms),
                     "drive": c.drive,
-                    "gain_reduction_db": (-20.0 * f64::from(c.limiter_gain.max(1e-6)).log10()).max(0.0),
+                    // `+ 0.0` turns no reduction's -0.0 into 0.0.
+                    "gain_reduction_db": (-20.0 * f64::from(c.limiter_gain.max(1e-6)).log10()).max(0.0) + 0.0,
                     "limited": c.limited,
                     "live": c.live,
                     "slot": c.slot,
@@ -309,6 +310,8 @@ pub struct Shared {
     pub jobs: Jobs,
     /// Where fitted materials are saved (`--library`), if anywhere.
     pub library: Option<PathBuf>,
+    /// Set by the page's "start again" once the session has ended.
+    restart: std::sync::atomic::AtomicBool,
 }
 
 impl Shared {
@@ -361,7 +364,43 @@ impl Shared {
             uploads: Mutex::new(Uploads::new()?),
             jobs: Jobs::default(),
             library,
+            restart: std::sync::atomic::AtomicBool::new(false),
         })
+    }
+
+    /// Asks for a new session, when the last one has ended.
+    ///
+    /// # Errors
+    /// Why not: the session is running or starting.
+    pub fn request_restart(&self) -> Result<(), String> {
+        let mut view = self.session();
+        match view.phase {
+            Phase::Ended(_) | Phase::Failed(_) => {
+                self.restart
+                    .store(true, std::sync::atomic::Ordering::SeqCst);
+                view.phase = Phase::Starting;
+                view.remote = None;
+                self.publish(&view);
+                Ok(())
+            }
+            Phase::Starting => Err("the session is starting".into()),
+            Phase::Running => Err("the session is running: STOP it first".into()),
+        }
+    }
+
+    /// Takes a restart request, if the page made one.
+    pub fn take_restart(&self) -> bool {
+        self.restart
+            .swap(false, std::sync::atomic::Ordering::SeqCst)
+    }
+
+    /// Where the next session records, as the page shows it.
+    pub fn set_record(&self, record: Option<PathBuf>) {
+        let mut view = self.session();
+        view.record = record.map(|p| p.display().to_string());
+        view.markers = 0;
+        view.last_marker = None;
+        self.publish(&view);
     }
 
     /// The token state-changing requests carry.
@@ -473,16 +512,36 @@ impl Observer for PanelObserver {
         };
         // Every material's filter first, in library order (so that names find their
         // filter, as OSC material messages expect), then the physical models.
+        // A session started again from the page: the materials fitted in an earlier one
+        // and kept for the panel only (no --library) play again, after the library's.
+        let kept: Vec<MaterialModel> = {
+            let view = self.shared.session();
+            view.entries
+                .iter()
+                .filter(|e| e.added && setup.library.get(&e.model.name).is_err())
+                .map(|e| e.model.clone())
+                .collect()
+        };
+        let materials: Vec<MaterialModel> = setup
+            .library
+            .materials
+            .iter()
+            .cloned()
+            .chain(kept)
+            .collect();
         let mut filters = Vec::new();
         let mut physicals = Vec::new();
-        for m in &setup.library.materials {
+        for m in &materials {
             let (iir, physical) = preparation.prepare(m)?;
             filters.push(iir);
             physicals.push(physical);
         }
         let mut view = self.shared.session();
+        view.entries.clear();
+        view.slots.clear();
+        let library_count = setup.library.materials.len();
         let mut bank = filters;
-        for (i, (m, physical)) in setup.library.materials.iter().zip(physicals).enumerate() {
+        for (i, (m, physical)) in materials.iter().zip(physicals).enumerate() {
             let physical_slot = physical.map(|p| {
                 bank.push(p);
                 (bank.len() - 1) as u16
@@ -494,7 +553,7 @@ impl Observer for PanelObserver {
                     iir: i as u16,
                     physical: physical_slot,
                 },
-                added: false,
+                added: i >= library_count,
                 leave_one_out: None,
             });
         }

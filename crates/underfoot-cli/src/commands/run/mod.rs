@@ -41,7 +41,7 @@ use crate::output::emit;
 pub mod status;
 
 /// Arguments of `underfoot run`.
-#[derive(Debug, Args)]
+#[derive(Debug, Clone, Args)]
 pub struct RunArgs {
     /// Where force comes from: replay:FILE.csv[@SPEED], gait:SPEC, serial:PORT, osc:HOST:PORT.
     /// Default (no --input, no --interface): a generated walk, `gait:steps=4`, said so on
@@ -245,6 +245,26 @@ impl RunArgs {
         self.synth.library.clone()
     }
 
+    /// These arguments as `panel` runs its `n`th session (from 1): a `--library` that
+    /// does not exist yet plays the built-in materials until a fit creates it, and a
+    /// restarted session records into `DIR-n`, beside the first's `DIR`.
+    #[cfg_attr(
+        not(feature = "panel"),
+        expect(dead_code, reason = "the panel restarts sessions")
+    )]
+    pub fn for_panel_session(&self, n: u32) -> Self {
+        let mut args = self.clone();
+        args.synth.library_created_by_fits = true;
+        if n > 1
+            && let Some(dir) = &self.record
+        {
+            let mut name = dir.as_os_str().to_owned();
+            name.push(format!("-{n}"));
+            args.record = Some(PathBuf::from(name));
+        }
+        args
+    }
+
     /// `--record`, if given.
     #[cfg_attr(
         not(feature = "panel"),
@@ -419,6 +439,24 @@ pub fn run_session(
     stop: &Arc<AtomicBool>,
     mut observer: Option<&mut dyn Observer>,
 ) -> anyhow::Result<()> {
+    let mut told = false;
+    let outcome = session_body(args, stop, &mut observer, &mut told);
+    // A session that failed before it started (a library that does not load, a device
+    // that does not open) is an end the observer must hear of too: a page would
+    // otherwise say "starting" for good.
+    if let (Err(e), Some(o), false) = (&outcome, &mut observer, told) {
+        o.ended(Err(e));
+    }
+    outcome
+}
+
+/// [`run_session`]'s body; sets `told` once the observer has heard how it ended.
+fn session_body(
+    args: &RunArgs,
+    stop: &Arc<AtomicBool>,
+    observer: &mut Option<&mut dyn Observer>,
+    told: &mut bool,
+) -> anyhow::Result<()> {
     if precheck(args)?.is_some() {
         return Ok(());
     }
@@ -481,7 +519,7 @@ pub fn run_session(
     } else {
         args.material.clone()
     };
-    let slots = match &mut observer {
+    let slots = match observer {
         Some(o) => o.prepare(&mut setup, &names, channels)?,
         None => None,
     };
@@ -493,7 +531,7 @@ pub fn run_session(
     let bank = std::mem::take(&mut setup.bank);
     let running = session.start(&setup.config, bank, &slots)?;
     eprintln!("underfoot: {}", describe(running.output()));
-    if let Some(o) = &mut observer {
+    if let Some(o) = observer {
         o.started(&running, &setup);
     }
 
@@ -537,7 +575,7 @@ pub fn run_session(
                 status::EVERY
             },
             |s| {
-                if let Some(o) = &mut observer {
+                if let Some(o) = observer.as_mut() {
                     o.status(s);
                 }
                 let mut display = display.borrow_mut();
@@ -565,8 +603,9 @@ pub fn run_session(
         running.run(stop, report_link)
     };
     let summary = summary.map_err(anyhow::Error::from);
-    if let Some(o) = &mut observer {
+    if let Some(o) = observer {
         o.ended(summary.as_ref());
+        *told = true;
     }
     let summary = summary?;
     emit(&report(&summary))?;

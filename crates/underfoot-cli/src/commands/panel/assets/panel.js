@@ -99,14 +99,17 @@ function update(s) {
   $("#non-finite").textContent = s.engine.non_finite;
   $("#latency").textContent = s.latency_ms == null ? "–" : `${s.latency_ms.toFixed(1)} ms`;
   if (s.state === "starting") {
+    $("#restart").hidden = true;
     setLink("starting", "warn");
     banner("The session is starting: preparing the materials and opening the devices.", false);
   } else if (s.state !== "running") {
     $("#stop").disabled = true;
+    $("#restart").hidden = false;
     setLink("engine stopped", "bad");
-    banner(`The engine has stopped: ${s.reason}. Start the panel again for a new session.`, s.state === "failed");
+    banner(`The engine has stopped: ${s.reason}. "Start again" starts a new session with the same settings.`, s.state === "failed");
   } else {
     $("#stop").disabled = false;
+    $("#restart").hidden = true;
     setLink("live", "ok");
     banner(s.input.link !== "open" ? `Input ${s.input.link}: the output fades to silence until it comes back.` : "");
   }
@@ -315,6 +318,11 @@ $("#next-trial").addEventListener("click", async () => {
   const t = $("#trial");
   t.value = String((Number(t.value) || 0) + 1);
   await mark(`trial ${t.value} starts`);
+});
+
+$("#restart").addEventListener("click", () => {
+  $("#restart").hidden = true;
+  api("POST", "/api/session/start", {}).catch((e) => banner(`start: ${e.message}`, true));
 });
 
 $("#stop").addEventListener("click", () => {
