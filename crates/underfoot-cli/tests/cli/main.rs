@@ -15,6 +15,8 @@ mod files;
 mod fit_cmd;
 mod library_cmd;
 mod live_offline;
+#[cfg(feature = "lsl")]
+mod lsl_streams;
 #[cfg(feature = "panel")]
 mod panel_browser;
 #[cfg(feature = "panel")]

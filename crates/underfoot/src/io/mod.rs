@@ -65,6 +65,8 @@ use crate::engine::Event;
 
 #[cfg(feature = "audio")]
 pub mod audio;
+#[cfg(feature = "lsl")]
+pub mod lsl;
 pub mod marker;
 #[cfg(feature = "osc")]
 pub mod osc;

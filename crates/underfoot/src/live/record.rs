@@ -103,9 +103,15 @@ pub enum RecordError {
         #[source]
         source: std::io::Error,
     },
-    /// The output WAV of the record failed.
+    /// The output WAV of the record failed, or the LSL streams could not open.
     #[error(transparent)]
     Wav(#[from] IoError),
+    /// LSL was asked of a build without it.
+    #[error(
+        "this build has no Lab Streaming Layer: rebuild with `--features lsl` (liblsl is \
+         loaded when a session starts)"
+    )]
+    NoLsl,
     /// A marker that cannot be recorded.
     #[error(transparent)]
     Marker(#[from] MarkerError),
@@ -128,6 +134,9 @@ pub struct RecordSettings {
     /// The input as the caller wrote it (`gait:steps=6`), for the manifest; else the
     /// session describes it.
     pub input: Option<String>,
+    /// Publish the force, the strikes and the markers as Lab Streaming Layer streams
+    /// too (`underfoot::io::lsl`; needs the `lsl` feature and liblsl).
+    pub lsl: bool,
 }
 
 impl RecordSettings {
@@ -142,6 +151,7 @@ impl RecordSettings {
             library: (String::new(), String::new()),
             settings: Value::Null,
             input: None,
+            lsl: false,
         }
     }
 
@@ -472,7 +482,24 @@ pub(super) struct Recorder {
     counts: RecordCounts,
     last_flush: Instant,
     line: String,
+    /// The Lab Streaming Layer streams, when asked for.
+    #[cfg_attr(
+        not(feature = "lsl"),
+        expect(dead_code, reason = "pushed to with `lsl`")
+    )]
+    lsl: Option<Lsl>,
+    /// The session's start and the output's first sample on the monotonic clock
+    /// (seconds), where it can be read.
+    #[cfg_attr(not(feature = "lsl"), expect(dead_code, reason = "markers' LSL time"))]
+    started_monotonic: Option<f64>,
+    output_monotonic: Option<f64>,
 }
+
+#[cfg(feature = "lsl")]
+type Lsl = crate::io::lsl::LslOutlets;
+/// Never made without the feature: [`RecordError::NoLsl`] is said instead.
+#[cfg(not(feature = "lsl"))]
+enum Lsl {}
 
 impl std::fmt::Debug for Recorder {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -502,7 +529,9 @@ impl Recorder {
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && dir.is_dir() => {}
             Err(e) => return Err(folder(e)),
         }
+        let lsl = open_lsl(settings.lsl, start.channels, start.sensor_rate)?;
         let started = Instant::now();
+        let started_monotonic = monotonic_now();
         let wall = SystemTime::now();
         let unix = wall
             .duration_since(SystemTime::UNIX_EPOCH)
@@ -527,8 +556,14 @@ impl Recorder {
             "started": {
                 "utc": utc_text(wall),
                 "unix_s": unix,
-                "monotonic_s": monotonic_now(),
+                "monotonic_s": started_monotonic,
             },
+            "output_started_monotonic_s": Value::Null,
+            "lsl": settings.lsl.then(|| json!({
+                "streams": ["underfoot force", "underfoot strikes", "underfoot markers"],
+                "clock": "lsl_local_clock, the monotonic clock: a marker at started.monotonic_s + t, \
+                          a strike at output_started_monotonic_s + time_s",
+            })),
             "max_bytes": settings.max_bytes,
             "files": {
                 "force": "force.csv",
@@ -571,6 +606,9 @@ impl Recorder {
             counts: RecordCounts::default(),
             last_flush: started,
             line: String::new(),
+            lsl,
+            started_monotonic,
+            output_monotonic: None,
             dir,
         };
         recorder.write_manifest()?;
@@ -581,6 +619,13 @@ impl Recorder {
         recorder.event(0, "start", json!({ "materials": materials }))?;
         recorder.flush()?;
         Ok((recorder, tap))
+    }
+
+    /// The output's first sample is now: strikes are placed from it on LSL's clock.
+    pub(super) fn output_starts(&mut self) -> Result<(), RecordError> {
+        self.output_monotonic = monotonic_now();
+        self.manifest["output_started_monotonic_s"] = json!(self.output_monotonic);
+        self.write_manifest()
     }
 
     /// Seconds since the session started, on the monotonic clock.
@@ -681,6 +726,16 @@ impl Recorder {
             }
         }
         self.counts.force_mismatched += mismatched;
+        #[cfg(feature = "lsl")]
+        if let Some(lsl) = &mut self.lsl {
+            let totals: Vec<f64> = self
+                .held
+                .iter()
+                .map(|r| r.map_or(0.0, |r| f64::from(r.total())))
+                .collect();
+            let at = lsl.clock();
+            lsl.push_force(&totals, at);
+        }
         let written = if self.room(line.len() as u64 + 1) {
             let n = self.force.line(&line)?;
             self.counts.force_rows += 1;
@@ -727,6 +782,16 @@ impl Recorder {
         );
         self.counts.bytes += self.strikes.line(&line)?;
         self.counts.strikes += 1;
+        #[cfg(feature = "lsl")]
+        if let (Some(lsl), Some(t0)) = (&mut self.lsl, self.output_monotonic) {
+            let sample = json!({
+                "channel": u32::from(s.channel) + 1,
+                "intensity": s.intensity,
+                "material": material,
+                "frame": s.frame,
+            });
+            lsl.push_strike(&sample.to_string(), t0 + s.frame as f64 / self.rate.hz());
+        }
         Ok(())
     }
 
@@ -737,7 +802,17 @@ impl Recorder {
         kind: &str,
         fields: Value,
     ) -> Result<(), RecordError> {
-        let mut object = json!({ "t": self.now(), "frame": frame, "kind": kind });
+        self.event_at(self.now(), frame, kind, fields)
+    }
+
+    fn event_at(
+        &mut self,
+        t: f64,
+        frame: u64,
+        kind: &str,
+        fields: Value,
+    ) -> Result<(), RecordError> {
+        let mut object = json!({ "t": t, "frame": frame, "kind": kind });
         if let (Some(o), Value::Object(fields)) = (object.as_object_mut(), fields) {
             o.extend(fields);
         }
@@ -749,8 +824,13 @@ impl Recorder {
     /// A marker, at engine frame `frame`.
     pub(super) fn marker(&mut self, frame: u64, marker: &Marker) -> Result<(), RecordError> {
         let fields = serde_json::to_value(marker).unwrap_or(Value::Null);
-        self.event(frame, "marker", fields)?;
+        let t = self.now();
+        self.event_at(t, frame, "marker", fields.clone())?;
         self.counts.markers += 1;
+        #[cfg(feature = "lsl")]
+        if let (Some(lsl), Some(t0)) = (&mut self.lsl, self.started_monotonic) {
+            lsl.push_marker(&fields.to_string(), t0 + t);
+        }
         Ok(())
     }
 
@@ -882,6 +962,25 @@ impl Recorder {
         }
         self.write_manifest()?;
         Ok(self.counts)
+    }
+}
+
+/// The LSL streams, when asked for and built with them.
+fn open_lsl(wanted: bool, channels: usize, sensor_rate: f64) -> Result<Option<Lsl>, RecordError> {
+    if !wanted {
+        return Ok(None);
+    }
+    #[cfg(feature = "lsl")]
+    {
+        Ok(Some(crate::io::lsl::LslOutlets::open(
+            channels,
+            sensor_rate,
+        )?))
+    }
+    #[cfg(not(feature = "lsl"))]
+    {
+        let _ = (channels, sensor_rate);
+        Err(RecordError::NoLsl)
     }
 }
 

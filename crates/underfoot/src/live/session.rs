@@ -275,6 +275,10 @@ impl Session {
             }
             None => (None, None),
         };
+        let mut recorder = recorder;
+        if let Some(r) = &mut recorder {
+            r.output_starts()?;
+        }
         let (output, info) = Output::start(
             Start {
                 spec: &self.config.output,

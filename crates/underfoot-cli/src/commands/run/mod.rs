@@ -151,6 +151,12 @@ pub struct RunArgs {
     /// stop and an event says so (strikes, markers and changes go on).
     #[arg(long = "record-max-mb", value_name = "MIB", default_value_t = 4096, requires = "record", value_parser = clap::value_parser!(u64).range(1..=1_048_576))]
     record_max_mb: u64,
+    /// Publish the record's force, strikes and markers as Lab Streaming Layer streams too
+    /// ("underfoot force", "underfoot strikes", "underfoot markers", on LSL's clock), for a
+    /// lab's LabRecorder. Needs a build with `--features lsl` and liblsl (set
+    /// UNDERFOOT_LIBLSL to its path, e.g. the one `pip install pylsl` carries).
+    #[arg(long, requires = "record")]
+    lsl: bool,
     #[command(flatten)]
     synth: SynthArgs,
 }
@@ -379,6 +385,7 @@ impl RunArgs {
                 "gain_db": s.gain_db,
                 "ceiling_db": s.ceiling_db,
             }),
+            lsl: self.lsl,
             ..RecordSettings::new(dir)
         }))
     }
