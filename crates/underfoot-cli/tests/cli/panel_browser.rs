@@ -24,6 +24,12 @@ const CHROMEDRIVER: &str = "/usr/bin/chromedriver";
 
 /// Whether the browser is here; `None` (with a note) when it is not and not required.
 fn browser_present() -> bool {
+    // CI's first pass runs while its browser is still being installed: the browser pass
+    // comes later, when it is there for sure.
+    if std::env::var_os("UNDERFOOT_BROWSER_LATER").is_some() {
+        eprintln!("note: skipping: the browser test runs later (UNDERFOOT_BROWSER_LATER)");
+        return false;
+    }
     if Path::new(CHROMIUM).exists() && Path::new(CHROMEDRIVER).exists() {
         return true;
     }

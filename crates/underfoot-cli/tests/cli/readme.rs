@@ -109,6 +109,11 @@ fn action(line: &Line) -> Result<Action, String> {
             "installs the panel's build; tests/cli/panel_*.rs test it",
         ));
     }
+    if text == "scripts/install-audio" {
+        return Ok(Action::Skip(
+            "installs system packages with apt-get; .ci/audio-setup does it in CI",
+        ));
+    }
     if text.starts_with("underfoot panel ") {
         return Ok(Action::Skip(
             "serves until Ctrl-C; tests/cli/panel_*.rs run it (CI, with the panel feature)",

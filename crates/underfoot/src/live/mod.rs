@@ -149,7 +149,8 @@ pub enum LiveError {
     Engine(#[from] EngineError),
     /// An audio output was asked of a build without one.
     #[error(
-        "this build has no audio output: rebuild with `--features audio` (needs the \
+        "this build has no audio output: run scripts/install-audio (Debian, Ubuntu), or \
+         rebuild with `--features audio` (needs the \
          libasound2-dev package), or use --output wav:FILE or --output null"
     )]
     NoAudio,

@@ -304,7 +304,8 @@ impl RunArgs {
             said.push(if cfg!(feature = "audio") {
                 "no --output: the default audio device".to_owned()
             } else {
-                "no --output, and this build has no audio (rebuild with `--features audio`): \
+                "no --output, and this build has no audio (scripts/install-audio adds the ALSA \
+                 headers and builds with it, or rebuild with `--features audio`): \
                  playing to null, paced in real time and counted but not heard; \
                  --output wav:FILE.wav to keep it"
                     .to_owned()
