@@ -163,6 +163,7 @@ fn a_minute_recorded_with_markers_holds_every_reading_strike_and_marker() {
         + (first * RATE).round() as i64;
     let window = (0.35 * RATE) as usize;
     let mut compared = 0;
+    let mut worst = 0.0f64;
     for row in &strikes {
         let frame: usize = row[1].parse().unwrap();
         let at = frame as i64 - shift;
@@ -176,8 +177,13 @@ fn a_minute_recorded_with_markers_holds_every_reading_strike_and_marker() {
             (a - b).abs() <= 0.5,
             "the step at frame {frame}: live {a:.2} dB, offline {b:.2} dB"
         );
+        worst = worst.max((a - b).abs());
         compared += 1;
     }
+    eprintln!(
+        "recorded output against an offline render of the recorded force: {compared} steps, \
+         worst peak difference {worst:.3} dB"
+    );
     assert!(
         compared + 2 >= strikes.len(),
         "{compared} of {} steps compared",
@@ -274,5 +280,58 @@ fn a_record_goes_only_into_a_new_or_empty_folder() {
         stderr(&shown).contains("not a session record"),
         "{}",
         stderr(&shown)
+    );
+}
+
+/// A record is bounded: at `--record-max-mb` the force, status and output stop, an event
+/// says so, and the session and its strikes go on.
+#[test]
+#[ignore = "slow tier: paced in real time"]
+fn a_record_stops_growing_at_its_bound_and_the_session_goes_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir.path().join("bounded");
+    // Two channels of 32-bit output at 48 kHz: 384 kB a second, 1 MiB in under 3 s.
+    let o = run(&[
+        "run",
+        "--input",
+        "gait:steps=8,channels=2,lead_in=0.2",
+        "--output",
+        "null",
+        "--record",
+        s(&folder),
+        "--record-max-mb",
+        "1",
+    ]);
+    assert_ok(&o);
+    let report = stdout(&o);
+    assert!(report.contains("it reached --record-max-mb"), "{report}");
+    let total: u64 = std::fs::read_dir(&folder)
+        .unwrap()
+        .flatten()
+        .map(|e| e.metadata().unwrap().len())
+        .sum();
+    // The bound, plus what is never cut: the manifest, the strikes, the events and the
+    // WAV header.
+    assert!(total <= (1 << 20) + 16 * 1024, "{total} bytes");
+    let events = json_lines(&folder.join("events.jsonl"));
+    assert!(
+        events.iter().any(|e| e["kind"] == "record_full"),
+        "{events:?}"
+    );
+    // Every strike the engine counted is still listed.
+    let strikes = csv_rows(&folder.join("strikes.csv")).len();
+    let counted: usize = report
+        .split(" strike(s)")
+        .next()
+        .and_then(|s| s.rsplit(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap();
+    assert_eq!(strikes, counted, "{report}");
+    let shown = run(&["session", "show", s(&folder)]);
+    assert_ok(&shown);
+    assert!(
+        stdout(&shown).contains("reached its bound"),
+        "{}",
+        stdout(&shown)
     );
 }

@@ -39,6 +39,14 @@
 //! when it reaches the bound, the force log, the status log and the output stop, an
 //! event says so, and the strikes, markers and changes (a few bytes each) go on.
 //!
+//! # Markers and LSL
+//! Markers ([`Marker`]) come from a [`Remote`](super::Remote) (a panel's page or HTTP
+//! call, a terminal's lines) or from the input (OSC's `/underfoot/v2/marker`). With
+//! [`RecordSettings::lsl`], the force (a sample per instant, the sum of each channel's
+//! sensors), the strikes and the markers also go out as Lab Streaming Layer streams
+//! (`underfoot::io::lsl`), stamped on the same monotonic clock: a marker at
+//! `started.monotonic_s + t`, a strike at `output_started_monotonic_s + time_s`.
+//!
 //! The output reaches the record through a lock-free ring ([`OutputTap`]) that the
 //! audio callback writes (never allocating, locking or waiting) and the session's thread
 //! drains; a ring the session did not drain in time drops whole buffers and counts them
