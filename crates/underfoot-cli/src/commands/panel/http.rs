@@ -2,6 +2,7 @@
 //! every request passes (host, token, origin; see the [module docs](super)).
 
 use std::sync::Arc;
+use std::time::Duration;
 
 use axum::Router;
 use axum::body::{Body, Bytes};
@@ -43,14 +44,79 @@ pub fn serve(listener: std::net::TcpListener, shared: &Arc<Shared>) -> anyhow::R
         .build()?;
     runtime.block_on(async {
         let listener = tokio::net::TcpListener::from_std(listener)?;
-        let mut quit = shared.quitting();
-        axum::serve(listener, router(Arc::clone(shared)))
-            .with_graceful_shutdown(async move {
-                let _ = quit.wait_for(|q| *q).await;
-            })
-            .await?;
+        accept_loop(listener, router(Arc::clone(shared)), shared.quitting()).await;
         Ok(())
     })
+}
+
+/// MiB of upload bodies held in memory at once, over all requests: two recordings at
+/// the largest size.
+pub const UPLOADS_IN_FLIGHT_MIB: u32 = 128;
+
+/// The longest a client may take to send a request's headers, and to start the next
+/// one on a kept-alive connection: a client that holds a connection open without
+/// sending (an idle socket, a slowloris) is closed after it.
+const HEADER_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// Connections served at once. Beyond it a new connection is closed at once, so that a
+/// local process opening hundreds cannot exhaust the panel's file descriptors (256 on
+/// some systems) and lock the page out; with [`HEADER_TIMEOUT`] the held ones go soon.
+const MAX_CONNECTIONS: usize = 128;
+
+/// Accepts connections until `quit`, each served by hyper with a header-read timeout
+/// (WebSocket upgrades included), at most [`MAX_CONNECTIONS`] at once; on `quit`, open
+/// connections are asked to close gracefully (a WebSocket ends when the server does).
+async fn accept_loop(
+    listener: tokio::net::TcpListener,
+    app: Router,
+    mut quit: tokio::sync::watch::Receiver<bool>,
+) {
+    use hyper_util::rt::{TokioIo, TokioTimer};
+    use hyper_util::service::TowerToHyperService;
+    let open = Arc::new(tokio::sync::Semaphore::new(MAX_CONNECTIONS));
+    let (closing, _) = tokio::sync::watch::channel(false);
+    let mut tasks = tokio::task::JoinSet::new();
+    loop {
+        let accepted = tokio::select! {
+            accepted = listener.accept() => accepted,
+            _ = quit.wait_for(|q| *q) => break,
+        };
+        let Ok((stream, _)) = accepted else {
+            // Out of descriptors or a reset before accept: wait a little, go on.
+            tokio::time::sleep(Duration::from_millis(50)).await;
+            continue;
+        };
+        let Ok(permit) = Arc::clone(&open).try_acquire_owned() else {
+            drop(stream);
+            continue;
+        };
+        let _ = stream.set_nodelay(true);
+        let service = TowerToHyperService::new(app.clone());
+        let mut closing = closing.subscribe();
+        tasks.spawn(async move {
+            let connection = hyper::server::conn::http1::Builder::new()
+                .timer(TokioTimer::new())
+                .header_read_timeout(HEADER_TIMEOUT)
+                .serve_connection(TokioIo::new(stream), service)
+                .with_upgrades();
+            tokio::pin!(connection);
+            tokio::select! {
+                _ = connection.as_mut() => {}
+                _ = closing.changed() => {
+                    connection.as_mut().graceful_shutdown();
+                    let _ = connection.await;
+                }
+            }
+            drop(permit);
+        });
+        // Finished connections' tasks are reaped as they end.
+        while tasks.try_join_next().is_some() {}
+    }
+    closing.send_replace(true);
+    let _ = tokio::time::timeout(Duration::from_secs(2), async {
+        while tasks.join_next().await.is_some() {}
+    })
+    .await;
 }
 
 /// Every route, behind the guard.
@@ -146,9 +212,28 @@ fn token_of<'a>(headers: &'a HeaderMap, query: Option<&'a str>) -> Option<&'a [u
 /// Host, origin and token checks, before any handler runs.
 async fn guard(State(shared): State<Arc<Shared>>, request: Request, next: Next) -> Response {
     let headers = request.headers();
+    // Two Host headers: which one a proxy or the router believed is anyone's guess.
+    if headers.get_all(header::HOST).iter().count() > 1 {
+        return error(StatusCode::BAD_REQUEST, "more than one Host header").into_response();
+    }
     let Some(host) = headers.get(header::HOST).and_then(|h| h.to_str().ok()) else {
         return error(StatusCode::BAD_REQUEST, "no Host header").into_response();
     };
+    // A request line in absolute form names its host there too (and HTTP says that one
+    // wins): it must be this server as well.
+    if let Some(authority) = request.uri().authority()
+        && !shared.is_our_host(authority.as_str())
+    {
+        return error(
+            StatusCode::MISDIRECTED_REQUEST,
+            format!(
+                "this panel serves {}, not {}",
+                shared.address(),
+                truncate(authority.as_str())
+            ),
+        )
+        .into_response();
+    }
     if !shared.is_our_host(host) {
         // A page on another site that resolved its name to this machine (DNS
         // rebinding) names that site here.
@@ -440,6 +525,7 @@ struct UploadQuery {
 async fn upload(
     State(shared): State<Arc<Shared>>,
     query: Result<Query<UploadQuery>, axum::extract::rejection::QueryRejection>,
+    headers: HeaderMap,
     body: Body,
 ) -> ApiResult {
     let Ok(Query(query)) = query else {
@@ -448,12 +534,37 @@ async fn upload(
             "say the recording's file name: /api/uploads?name=FILE.wav",
         ));
     };
-    let bytes = axum::body::to_bytes(body, MAX_UPLOAD).await.map_err(|_| {
+    let too_large = || {
         error(
             StatusCode::PAYLOAD_TOO_LARGE,
             format!("a recording of at most {} MiB", MAX_UPLOAD >> 20),
         )
-    })?;
+    };
+    // A declared size over the cap is refused before a byte is read.
+    let declared = headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<usize>().ok());
+    if declared.is_some_and(|n| n > MAX_UPLOAD) {
+        return Err(too_large());
+    }
+    // Bodies are held in memory until stored: all uploads in flight share a budget, so
+    // that many at once cannot grow the panel without bound (each takes what it declares,
+    // or the cap when it declares nothing).
+    let mib = declared.unwrap_or(MAX_UPLOAD).div_ceil(1 << 20).max(1) as u32;
+    let Ok(_budget) = Arc::clone(&shared.upload_budget).try_acquire_many_owned(mib) else {
+        return Err(error(
+            StatusCode::SERVICE_UNAVAILABLE,
+            format!(
+                "too many uploads at once (at most {} MiB in flight): try again when these \
+                 have finished",
+                UPLOADS_IN_FLIGHT_MIB
+            ),
+        ));
+    };
+    let bytes = axum::body::to_bytes(body, declared.unwrap_or(MAX_UPLOAD).min(MAX_UPLOAD))
+        .await
+        .map_err(|_| too_large())?;
     let upload = shared
         .uploads
         .lock()

@@ -312,6 +312,8 @@ pub struct Shared {
     pub library: Option<PathBuf>,
     /// Set by the page's "start again" once the session has ended.
     restart: std::sync::atomic::AtomicBool,
+    /// MiB of upload bodies that may be in memory at once, over all requests.
+    pub upload_budget: Arc<tokio::sync::Semaphore>,
 }
 
 impl Shared {
@@ -365,6 +367,9 @@ impl Shared {
             jobs: Jobs::default(),
             library,
             restart: std::sync::atomic::AtomicBool::new(false),
+            upload_budget: Arc::new(tokio::sync::Semaphore::new(
+                super::http::UPLOADS_IN_FLIGHT_MIB as usize,
+            )),
         })
     }
 
