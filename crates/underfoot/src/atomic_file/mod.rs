@@ -75,6 +75,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 mod lock;
 mod policy;
 mod stale;
+pub use stale::process_is_gone;
 mod write;
 
 pub use lock::EditLock;

@@ -28,10 +28,20 @@ pub(super) fn remove_stale(target: &Path) {
     remove_unheld_lock(&dir.join(format!(".{name}.lock")));
 }
 
-/// The pid in a temporary file's name `.tmp-PID-N.NAME` for the target `NAME`.
+/// How a temporary file's name begins: `.tmp-PID-N.NAME`.
+const TEMPORARY: &str = ".tmp-";
+
+/// The name of writer `pid`'s `n`th temporary file for the target `name`:
+/// `.tmp-PID-N.NAME`, which [`temporary_owner`] reads back.
+pub(super) fn temporary_name(pid: u32, n: u64, name: &str) -> String {
+    format!("{TEMPORARY}{pid}-{n}.{name}")
+}
+
+/// The pid in a temporary file's name `.tmp-PID-N.NAME` for the target `NAME`
+/// ([`temporary_name`]).
 fn temporary_owner(file: &str, name: &str) -> Option<u32> {
     let rest = file
-        .strip_prefix(".tmp-")?
+        .strip_prefix(TEMPORARY)?
         .strip_suffix(name)?
         .strip_suffix('.')?;
     let (pid, counter) = rest.split_once('-')?;
@@ -40,8 +50,9 @@ fn temporary_owner(file: &str, name: &str) -> Option<u32> {
 }
 
 /// Whether no process has `pid`: only where `/proc` says so (Linux). Elsewhere, or if
-/// `/proc` is not mounted, every owner counts as alive and nothing is removed.
-fn process_is_gone(pid: u32) -> bool {
+/// `/proc` is not mounted, every owner counts as alive, so that what it left is kept.
+#[must_use]
+pub fn process_is_gone(pid: u32) -> bool {
     let proc = Path::new("/proc");
     proc.join("self").exists() && !proc.join(pid.to_string()).exists()
 }
@@ -66,4 +77,17 @@ fn remove_unheld_lock(path: &Path) {
         let _ = fs::remove_file(path);
     }
     let _ = fs4::FileExt::unlock(&file);
+}
+
+#[cfg(test)]
+mod round_trip {
+    use super::*;
+
+    #[test]
+    fn a_temporary_name_reads_back_its_owner() {
+        let name = temporary_name(4242, 17, "lab.json");
+        assert_eq!(name, ".tmp-4242-17.lab.json");
+        assert_eq!(temporary_owner(&name, "lab.json"), Some(4242));
+        assert_eq!(temporary_owner(&name, "other.json"), None);
+    }
 }

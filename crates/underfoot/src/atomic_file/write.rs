@@ -42,10 +42,10 @@ impl OutputFile {
         // with the target's, so a writer that goes by the extension (plots) still can.
         self.create_beside("a temporary file", "creating a temporary file", |target| {
             let name = target.file_name().unwrap_or_default().to_string_lossy();
-            format!(
-                ".tmp-{}-{}.{name}",
+            super::stale::temporary_name(
                 std::process::id(),
-                COUNTER.fetch_add(1, Ordering::Relaxed)
+                COUNTER.fetch_add(1, Ordering::Relaxed),
+                &name,
             )
         })
     }

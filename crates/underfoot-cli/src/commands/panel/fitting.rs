@@ -43,6 +43,34 @@ pub struct Upload {
     path: PathBuf,
 }
 
+/// The uploads' folder's name starts with this, then the panel's pid and a dash: a
+/// folder whose panel was killed (and so never removed it) is known by its pid.
+const FOLDER_PREFIX: &str = "underfoot-panel-";
+
+/// Removes the upload folders in `temp` of panels that are gone (killed before they could
+/// remove them). A folder whose panel may be alive, or whose name has no pid, stays.
+fn remove_stale_folders(temp: &Path) {
+    let Ok(entries) = std::fs::read_dir(temp) else {
+        return;
+    };
+    let own = std::process::id();
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name
+            .to_str()
+            .and_then(|n| n.strip_prefix(FOLDER_PREFIX))
+            .and_then(|rest| rest.split_once('-'))
+            .and_then(|(pid, _)| pid.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        let is_dir = entry.file_type().is_ok_and(|t| t.is_dir());
+        if is_dir && pid != own && underfoot::atomic_file::process_is_gone(pid) {
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
+}
+
 /// The uploads, in a temporary folder removed when the panel ends.
 pub struct Uploads {
     dir: tempfile::TempDir,
@@ -52,8 +80,9 @@ pub struct Uploads {
 
 impl Uploads {
     pub fn new() -> anyhow::Result<Self> {
+        remove_stale_folders(&std::env::temp_dir());
         let dir = tempfile::Builder::new()
-            .prefix("underfoot-panel-")
+            .prefix(&format!("{FOLDER_PREFIX}{}-", std::process::id()))
             .tempdir()
             .map_err(|e| anyhow::anyhow!("making the panel's temporary folder: {e}"))?;
         Ok(Self {
@@ -343,5 +372,29 @@ fn fit(
             .to_json();
             Ok((json, format!("{saved}; {why}")))
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_killed_panel_s_upload_folder_is_removed_and_a_live_one_kept() {
+        let temp = tempfile::tempdir().unwrap();
+        let make = |name: &str| {
+            let dir = temp.path().join(name);
+            std::fs::create_dir(&dir).unwrap();
+            std::fs::write(dir.join("upload-1.ogg"), b"OggS").unwrap();
+            dir
+        };
+        // No process has a pid this large (the kernel's maximum is 2^22).
+        let killed = make("underfoot-panel-4194305-a1b2");
+        let alive = make("underfoot-panel-1-c3d4");
+        let own = make(&format!("underfoot-panel-{}-e5f6", std::process::id()));
+        let unknown = make("underfoot-panel-g7h8");
+        remove_stale_folders(temp.path());
+        assert!(!killed.exists());
+        assert!(alive.exists() && own.exists() && unknown.exists());
     }
 }

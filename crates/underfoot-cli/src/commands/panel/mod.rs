@@ -45,8 +45,9 @@
 //!   WebSocket upgrade checks the `Origin` too. On loopback the page carries the token;
 //!   with `--allow-remote`, every request needs it (the printed address carries it as
 //!   `?token=`). The `Host` header must name this server (against DNS rebinding).
-//! - Uploads go into a temporary folder the panel makes and removes, under names it
-//!   chooses (`upload-N.EXT`); a request's file name is only a label, and no path in any
+//! - Uploads go into a temporary folder the panel makes and removes
+//!   (`underfoot-panel-PID-...`; a killed panel's is removed by the next one to start),
+//!   under names it chooses (`upload-N.EXT`); a request's file name is only a label, and no path in any
 //!   request reaches the file system. Uploads are capped (64 MiB each, 64 files, 512 MiB
 //!   in all), request bodies elsewhere at 64 KiB, WebSocket messages at 4 KiB.
 //! - A fitted material is added to `--library` (when given) with `fit`'s atomic, locked
