@@ -21,7 +21,7 @@
 
 use super::{ExportConfig, ExportError};
 use crate::material::MaterialModel;
-use crate::numeric::dtft;
+use crate::numeric::dtft_many;
 use crate::signal::Sos;
 use crate::units::{Decibels, Hz, SampleRate};
 
@@ -121,14 +121,14 @@ impl Checker {
                 .iter()
                 .map(|&f| coefficients.response(self.rate.omega(f)).norm()),
         );
+        let omegas: Vec<f64> = self.grid.iter().map(|&f| self.rate.omega(f)).collect();
         let levels: Vec<LevelCheck> = impulses
             .iter()
             .map(|(level, ir)| {
-                let (impulse_db, worst_hz) = self.worst(
-                    self.grid
-                        .iter()
-                        .map(|&f| dtft(ir, self.rate.omega(f)).norm()),
-                );
+                // All the grid's frequencies in one pass over the response: the export's
+                // time goes here (a 2,000-material library: 74 s one frequency at a time).
+                let (impulse_db, worst_hz) =
+                    self.worst(dtft_many(ir, &omegas).into_iter().map(|c| c.norm()));
                 LevelCheck {
                     level: *level,
                     impulse_db,

@@ -49,15 +49,40 @@ pub fn export_library(
     if models.is_empty() {
         return Err(ExportError::Empty);
     }
-    let materials = models
-        .into_iter()
-        .map(|m| prepare(m, config))
-        .collect::<Result<_, _>>()?;
+    let materials = prepare_all(&models, config)?;
     Ok(Export {
         origin: origin.to_string(),
         library_sha256: sha256_hex(library.to_json().as_bytes()),
         materials,
     })
+}
+
+/// [`prepare`] of every model, on as many threads as the machine has (each material's
+/// check is independent, and an export of a large library is that check's time), in
+/// order; the first failure in library order is the error, as one at a time.
+fn prepare_all(
+    models: &[&MaterialModel],
+    config: &ExportConfig,
+) -> Result<Vec<Exported>, ExportError> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, std::num::NonZeroUsize::get)
+        .min(models.len())
+        .max(1);
+    if threads == 1 {
+        return models.iter().map(|m| prepare(m, config)).collect();
+    }
+    let chunk = models.len().div_ceil(threads);
+    let results: Vec<Vec<Result<Exported, ExportError>>> = std::thread::scope(|scope| {
+        let workers: Vec<_> = models
+            .chunks(chunk)
+            .map(|part| scope.spawn(move || part.iter().map(|m| prepare(m, config)).collect()))
+            .collect();
+        workers
+            .into_iter()
+            .map(|w| w.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    });
+    results.into_iter().flatten().collect()
 }
 
 /// Writes `text` to `path` atomically (temporary file and rename).
