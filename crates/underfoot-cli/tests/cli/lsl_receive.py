@@ -18,14 +18,16 @@ NAMES = ["underfoot strikes", "underfoot markers"]
 seconds = float(sys.argv[1])
 inlets = {}
 deadline = time.time() + 30
+seen = set()
 while len(inlets) < len(NAMES) and time.time() < deadline:
-    for info in pylsl.resolve_streams(wait_time=0.5):
+    for info in pylsl.resolve_streams(wait_time=1.0):
+        seen.add(info.name())
         if info.name() in NAMES and info.name() not in inlets:
             inlet = pylsl.StreamInlet(info, max_buflen=60)
             inlet.open_stream(timeout=10)
             inlets[info.name()] = inlet
 if len(inlets) < len(NAMES):
-    sys.exit(f"found only {sorted(inlets)} of {NAMES}")
+    sys.exit(f"found only {sorted(inlets)} of {NAMES} (streams seen: {sorted(seen)})")
 print("READY", flush=True)
 received = {name: [] for name in NAMES}
 end = time.time() + seconds

@@ -49,19 +49,21 @@ fn loopback_config(dir: &Path) -> PathBuf {
     path
 }
 
-#[test]
-#[ignore = "slow tier: a session paced in real time, received over LSL"]
-fn lsl_streams_carry_every_strike_and_marker_on_the_record_s_clock() {
-    let Some(site) = pylsl_site() else { return };
-    let dir = tempfile::tempdir().unwrap();
-    let config = loopback_config(dir.path());
-    let folder = dir.path().join("session");
+/// One session published and received; the received samples and the record's folder,
+/// or what each side said when the receiver found no streams.
+fn exchange(
+    site: &Path,
+    dir: &Path,
+    config: &Path,
+    attempt: u32,
+) -> Result<(serde_json::Value, PathBuf), String> {
+    let folder = dir.join(format!("session-{attempt}"));
     let liblsl = site.join("pylsl/lib/liblsl.so");
     let mut session = Command::new(bin())
         .args([
             "run",
             "--input",
-            "gait:steps=6,channels=1,lead_in=4",
+            "gait:steps=6,channels=1,lead_in=10",
             "--output",
             "null",
             "--record",
@@ -69,7 +71,7 @@ fn lsl_streams_carry_every_strike_and_marker_on_the_record_s_clock() {
             "--lsl",
         ])
         .env("UNDERFOOT_LIBLSL", &liblsl)
-        .env("LSLAPICFG", &config)
+        .env("LSLAPICFG", config)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -79,17 +81,28 @@ fn lsl_streams_carry_every_strike_and_marker_on_the_record_s_clock() {
     let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/cli/lsl_receive.py");
     let mut receiver = Command::new("python3")
         .arg(&script)
-        .arg("14")
-        .env("PYTHONPATH", &site)
-        .env("LSLAPICFG", &config)
+        .arg("20")
+        .env("PYTHONPATH", site)
+        .env("LSLAPICFG", config)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
     let mut lines = BufReader::new(receiver.stdout.take().unwrap()).lines();
     let ready = lines.next().and_then(Result::ok).unwrap_or_default();
-    assert_eq!(ready, "READY", "the receiver did not find the streams");
-    // The walk's first step comes after its 4 s lead-in: the inlets are open by then.
+    if ready != "READY" {
+        // Say what each side said before failing: a resolution that fails on a loaded
+        // machine and a session that did not start look alike from here.
+        let _ = session.kill();
+        let session = session.wait_with_output().unwrap();
+        let receiver = receiver.wait_with_output().unwrap();
+        return Err(format!(
+            "the receiver did not find the streams ({ready:?})\nreceiver: {}\nsession: {}",
+            String::from_utf8_lossy(&receiver.stderr),
+            String::from_utf8_lossy(&session.stderr)
+        ));
+    }
+    // The walk's first step comes after its 10 s lead-in: the inlets are open by then.
     for n in 1..=3 {
         writeln!(markers_in, r#"{{"text": "lsl marker {n}", "trial": {n}}}"#).unwrap();
         std::thread::sleep(Duration::from_millis(300));
@@ -100,6 +113,28 @@ fn lsl_streams_carry_every_strike_and_marker_on_the_record_s_clock() {
         serde_json::from_str(&lines.next().and_then(Result::ok).unwrap_or_default())
             .expect("the receiver's JSON");
     assert!(receiver.wait().unwrap().success());
+    Ok((received, folder))
+}
+
+#[test]
+#[ignore = "slow tier: a session paced in real time, received over LSL"]
+fn lsl_streams_carry_every_strike_and_marker_on_the_record_s_clock() {
+    let Some(site) = pylsl_site() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let config = loopback_config(dir.path());
+    let mut attempt = 1;
+    let (received, folder) = loop {
+        match exchange(&site, dir.path(), &config, attempt) {
+            Ok(done) => break done,
+            // LSL's discovery is UDP: on a loaded machine it has missed once in CI. A
+            // second miss is a failure; the first is said, with both sides' output.
+            Err(why) if attempt == 1 => {
+                eprintln!("LSL attempt 1 failed, trying once more: {why}");
+                attempt += 1;
+            }
+            Err(why) => panic!("{why}"),
+        }
+    };
 
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(folder.join("manifest.json")).unwrap())
