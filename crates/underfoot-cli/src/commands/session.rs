@@ -81,12 +81,10 @@ fn show(args: &ShowArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn dbfs(x: f64) -> String {
-    if x > 0.0 {
-        format!("{:.1} dBFS", 20.0 * x.log10())
-    } else {
-        "silent".to_owned()
-    }
+/// A level for a person: dBFS, or "silent" by the library's one rule for silence.
+fn dbfs(amplitude: f32) -> String {
+    underfoot::safety::level_dbfs(amplitude)
+        .map_or_else(|| "silent".to_owned(), |db| format!("{db:.1} dBFS"))
 }
 
 /// The text of `session show`.
@@ -214,7 +212,7 @@ fn summary(record: &SessionRecord, output: Option<&RecordedOutput>) -> String {
             .enumerate()
             .map(|(c, x)| {
                 let peak = x.iter().fold(0.0f32, |p, v| p.max(v.abs()));
-                format!("channel {}: {}", c + 1, dbfs(f64::from(peak)))
+                format!("channel {}: {}", c + 1, dbfs(peak))
             })
             .collect();
         text.push_str(&format!(

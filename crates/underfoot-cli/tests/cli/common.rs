@@ -151,3 +151,23 @@ pub fn footsteps_dir() -> Option<PathBuf> {
     );
     None
 }
+
+/// The events of the session record in `folder` once the session has ended (its
+/// manifest says why), waiting up to 10 s for the end.
+pub fn ended_record_events(folder: &Path) -> Vec<serde_json::Value> {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while !fs::read_to_string(folder.join("manifest.json")).is_ok_and(|m| m.contains("\"reason\""))
+    {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the record in {} never ended",
+            folder.display()
+        );
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    fs::read_to_string(folder.join("events.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}

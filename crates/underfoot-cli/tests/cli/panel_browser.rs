@@ -449,18 +449,7 @@ fn the_panel_works_in_a_headless_browser() {
     browser.screenshot(&screenshots().join("panel-stopped.png"));
     // The markers from the page are in the record, in order, with the trial bar's fields.
     let record = panel.tmp.path().join("rec");
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while !std::fs::read_to_string(record.join("manifest.json"))
-        .is_ok_and(|m| m.contains("\"reason\""))
-    {
-        assert!(Instant::now() < deadline, "the record never ended");
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    let events: Vec<Value> = std::fs::read_to_string(record.join("events.jsonl"))
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let events = crate::common::ended_record_events(&record);
     let markers: Vec<&Value> = events.iter().filter(|e| e["kind"] == "marker").collect();
     assert_eq!(markers.len(), 3, "{events:?}");
     assert_eq!(markers[0]["text"], "trial 1 starts");

@@ -1223,21 +1223,7 @@ fn osc_and_the_api_number_channels_as_the_status_and_the_record_do() {
     // The record calls them the same.
     assert_eq!(panel.post("/api/stop", "{}").status, 200);
     let record = panel.tmp.path().join("rec");
-    let deadline = std::time::Instant::now() + Duration::from_secs(10);
-    while !std::fs::read_to_string(record.join("manifest.json"))
-        .is_ok_and(|m| m.contains("\"reason\""))
-    {
-        assert!(
-            std::time::Instant::now() < deadline,
-            "the record never ended"
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    let events: Vec<Value> = std::fs::read_to_string(record.join("events.jsonl"))
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let events = crate::common::ended_record_events(&record);
     let material = |from: &str| {
         events
             .iter()

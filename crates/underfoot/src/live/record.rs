@@ -488,6 +488,8 @@ pub(super) struct Recorder {
     held: Vec<Option<SensorReading>>,
     last_row_time: Option<f64>,
     counts: RecordCounts,
+    /// Whether the event saying the record is full has been written.
+    full_noted: bool,
     last_flush: Instant,
     line: String,
     /// The Lab Streaming Layer streams, when asked for.
@@ -612,6 +614,7 @@ impl Recorder {
             held: vec![None; channels],
             last_row_time: None,
             counts: RecordCounts::default(),
+            full_noted: false,
             last_flush: started,
             line: String::new(),
             lsl,
@@ -761,10 +764,10 @@ impl Recorder {
     }
 
     fn note_full(&mut self) -> Result<(), RecordError> {
-        if self.manifest["full_noted"].as_bool() == Some(true) {
+        if self.full_noted {
             return Ok(());
         }
-        self.manifest["full_noted"] = Value::Bool(true);
+        self.full_noted = true;
         let max = self.max_bytes;
         self.event(
             0,
@@ -965,9 +968,6 @@ impl Recorder {
             "record": self.counts,
         });
         self.manifest["ended"] = ended;
-        if let Some(o) = self.manifest.as_object_mut() {
-            o.remove("full_noted");
-        }
         self.write_manifest()?;
         Ok(self.counts)
     }
