@@ -221,6 +221,13 @@ fn a_session_killed_mid_walk_leaves_a_record_that_reads() {
         .spawn()
         .unwrap();
     let mut stdin = child.stdin.take().unwrap();
+    // The 4 s count from the session's start (its manifest), not the process's: a loaded
+    // machine takes a second or more to prepare the materials.
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while !folder.join("manifest.json").exists() {
+        assert!(Instant::now() < deadline, "the session never started");
+        std::thread::sleep(Duration::from_millis(20));
+    }
     std::thread::sleep(Duration::from_millis(1500));
     writeln!(stdin, "before the kill").unwrap();
     std::thread::sleep(Duration::from_millis(2500));
