@@ -154,6 +154,10 @@ pub fn footsteps_dir() -> Option<PathBuf> {
 
 /// The events of the session record in `folder` once the session has ended (its
 /// manifest says why), waiting up to 10 s for the end.
+#[cfg_attr(
+    not(feature = "panel"),
+    expect(dead_code, reason = "the panel's tests read the records")
+)]
 pub fn ended_record_events(folder: &Path) -> Vec<serde_json::Value> {
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
     while !fs::read_to_string(folder.join("manifest.json")).is_ok_and(|m| m.contains("\"reason\""))

@@ -273,6 +273,26 @@ fn the_panel_works_in_a_headless_browser() {
          document.querySelector('#link').textContent === 'live' && \
          document.querySelector('#banner').hidden",
     );
+    // Every control says what it does: a help line of its own or its label's.
+    let silent = browser.script(
+        "return [...document.querySelectorAll('input, select, button, textarea, [tabindex]')] \
+         .filter(e => !(e.title || (e.closest('label') && e.closest('label').title))) \
+         .map(e => e.id || e.className || e.outerHTML.slice(0, 80))",
+    );
+    assert_eq!(silent, json!([]), "controls without a help line");
+    // While the session runs, its input, output and library are shown, not editable.
+    let shown = browser.script(
+        "return ['#set-input', '#set-output', '#set-library'].map(s => \
+         [document.querySelector(s).value, document.querySelector(s).disabled])",
+    );
+    assert_eq!(
+        shown,
+        json!([
+            ["gait:steps=120,channels=2", true],
+            ["null", true],
+            ["", true]
+        ])
+    );
     // The meters move: the output meter's width and the force values change.
     let sample = "return [...document.querySelectorAll('article.channel')].map(a => \
                   a.querySelector('.out i.peak').style.width + '|' + \
@@ -464,11 +484,22 @@ fn the_panel_works_in_a_headless_browser() {
     assert_eq!(events.last().unwrap()["reason"], "remote_stop");
 
     // Started again from the page: a new session, the fit of the last one still listed
-    // (kept for the panel, there being no --library), recording into rec-2.
+    // (kept for the panel, there being no --library), recording into rec-2, with the
+    // output chosen on the page.
+    browser.wait_for(
+        Duration::from_secs(5),
+        "the session's fields open for the next one",
+        "return !document.querySelector('#set-output').disabled && \
+         document.querySelector('#set-output').value === 'null' && \
+         document.querySelectorAll('#output-offers option').length >= 1",
+    );
+    browser.script("document.querySelector('#set-output').value = 'wav:chosen.wav'");
     browser.click("#restart");
-    panel.wait_for(Duration::from_secs(20), "running again", |s| {
+    let again = panel.wait_for(Duration::from_secs(20), "running again", |s| {
         s["state"] == "running"
     });
+    assert_eq!(again["settings"]["output"], "wav:chosen.wav", "{again}");
+    assert_eq!(again["settings"]["input"], "gait:steps=120,channels=2");
     browser.wait_for(
         Duration::from_secs(10),
         "the page live again with the fit listed",

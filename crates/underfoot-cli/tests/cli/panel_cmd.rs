@@ -1334,6 +1334,95 @@ fn panel_starts_with_a_missing_library_and_starts_again_with_the_fit() {
     });
 }
 
+/// The page chooses the next session's input, output and library (issue 29): the
+/// options list what the machine has, a choice that does not parse is refused with the
+/// flag's own message and changes nothing, and a good one is what the next session
+/// plays with: its status says so, its WAV is written where the page said, its fits
+/// go into the library the page named. What the page leaves out stays as it was.
+#[test]
+fn the_page_chooses_the_next_sessions_input_output_and_library() {
+    let panel = Panel::start(&[
+        "--input",
+        "gait:steps=2",
+        "--output",
+        "null",
+        "--duration",
+        "1",
+    ]);
+    let first = panel.wait_for(Duration::from_secs(20), "the first session ended", |s| {
+        s["state"] == "ended"
+    });
+    assert_eq!(first["settings"]["input"], "gait:steps=2", "{first}");
+    assert_eq!(first["settings"]["output"], "null");
+    assert_eq!(first["settings"]["library"], Value::Null);
+
+    let options = get(panel.addr, "/api/session/options").json();
+    let offered = |key: &str, what: &str| {
+        options[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|o| o.as_str() == Some(what))
+    };
+    assert!(offered("inputs", "gait:steps=4"), "{options}");
+    assert!(offered("outputs", "null"), "{options}");
+    assert_eq!(options["files_allowed"], true);
+
+    let bad = panel.post("/api/session/start", r#"{"input":"gait:stepz=3"}"#);
+    assert_eq!(bad.status, 400, "{}", bad.body);
+    assert!(
+        bad.body.contains("input") && bad.body.contains("stepz"),
+        "{}",
+        bad.body
+    );
+    let bad = panel.post("/api/session/start", r#"{"output":"wav:"}"#);
+    assert_eq!(bad.status, 400, "{}", bad.body);
+    let bad = panel.post("/api/session/start", r#"{"speed":"fast"}"#);
+    assert_eq!(bad.status, 400, "{}", bad.body);
+    assert_eq!(
+        panel.status()["state"],
+        "ended",
+        "a refused choice starts nothing"
+    );
+
+    let wav = panel.tmp.path().join("chosen.wav");
+    let lib = panel.tmp.path().join("chosen.json");
+    let body = serde_json::json!({
+        "input": "gait:steps=3",
+        "output": format!("wav:{}", wav.display()),
+        "library": lib.display().to_string(),
+    });
+    let r = panel.post("/api/session/start", &body.to_string());
+    assert_eq!(r.status, 200, "{}", r.body);
+    let second = panel.wait_for(Duration::from_secs(20), "the chosen session", |s| {
+        s["state"] == "running" || s["state"] == "ended"
+    });
+    assert_eq!(second["settings"]["input"], "gait:steps=3", "{second}");
+    assert_eq!(
+        second["settings"]["output"],
+        format!("wav:{}", wav.display())
+    );
+    assert_eq!(second["settings"]["library"], lib.display().to_string());
+    let saves_to = get(panel.addr, "/api/library").json()["saves_to"].clone();
+    assert_eq!(saves_to, lib.display().to_string());
+    panel.wait_for(Duration::from_secs(20), "the chosen session ended", |s| {
+        s["state"] == "ended"
+    });
+    let reader = hound::WavReader::open(&wav).expect("the chosen WAV output was written");
+    assert!(reader.duration() > 0);
+
+    // Left out: the last session's choice stays (the input and the library), and an
+    // empty library is the built-in one.
+    let r = panel.post("/api/session/start", r#"{"output":"null","library":""}"#);
+    assert_eq!(r.status, 200, "{}", r.body);
+    let third = panel.wait_for(Duration::from_secs(20), "the third session", |s| {
+        s["state"] != "starting"
+    });
+    assert_eq!(third["settings"]["input"], "gait:steps=3", "{third}");
+    assert_eq!(third["settings"]["output"], "null");
+    assert_eq!(third["settings"]["library"], Value::Null);
+}
+
 /// A local process cannot hold the panel down (issue 30): an idle connection is closed
 /// after the header timeout, hundreds of them leave the page reachable within that
 /// timeout and the process's descriptors bounded, an upload that declares more than the

@@ -261,7 +261,10 @@ fn fit(
 ) -> anyhow::Result<(serde_json::Value, String)> {
     // Checked before the slow part, as `fit` does: a broken library must not cost a fit.
     let paths: Vec<&Path> = uploads.iter().map(|u| u.path.as_path()).collect();
-    let library_out = match &shared.library {
+    // The library of the session the fit started in: a session started meanwhile with
+    // another is not where the page said the fit would go.
+    let library = shared.library();
+    let library_out = match &library {
         Some(p) => {
             let out = OutputFile::check(p, &paths)?;
             Library::load_or_new(p)?;
@@ -308,7 +311,7 @@ fn fit(
         (view.preparation.clone(), view.remote.clone())
     };
     let prepared = preparation.map(|p| p.prepare(&model)).transpose()?;
-    let saved = match (&library_out, &shared.library) {
+    let saved = match (&library_out, &library) {
         (Some(out), Some(path)) => {
             progress(format!("saving into {}", path.display()));
             let replaced = Library::edit(out, true, |library| {

@@ -136,6 +136,7 @@ pub fn router(shared: Arc<Shared>) -> Router {
         .route("/api/stop", post(stop))
         .route("/api/markers", post(add_marker))
         .route("/api/session/start", post(start_session))
+        .route("/api/session/options", get(session_options))
         .route(
             "/api/uploads",
             post(upload).layer(DefaultBodyLimit::max(MAX_UPLOAD)),
@@ -331,7 +332,7 @@ async fn library(State(shared): State<Arc<Shared>>) -> Response {
     json_response(
         json!({
             "origin": view.origin,
-            "saves_to": shared.library.as_ref().map(|p| p.display().to_string()),
+            "saves_to": view.settings.library.as_ref().map(|p| p.display().to_string()),
             "materials": materials,
         })
         .to_string(),
@@ -492,12 +493,71 @@ async fn stop(State(shared): State<Arc<Shared>>) -> ApiResult {
     Ok(json_response(json!({ "stopping": true }).to_string()))
 }
 
-/// A new session, once the last has ended.
-async fn start_session(State(shared): State<Arc<Shared>>) -> ApiResult {
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct StartRequest {
+    input: Option<String>,
+    output: Option<String>,
+    library: Option<String>,
+}
+
+/// A new session, once the last has ended, with the input, output and library the
+/// request names (each as its flag takes it; left out: the last session's).
+async fn start_session(State(shared): State<Arc<Shared>>, body: Bytes) -> ApiResult {
+    let request: StartRequest = if body.iter().all(u8::is_ascii_whitespace) {
+        StartRequest::default()
+    } else {
+        parse(&body)?
+    };
     shared
-        .request_restart()
-        .map_err(|why| error(StatusCode::CONFLICT, why))?;
+        .request_restart(
+            request.input.as_deref(),
+            request.output.as_deref(),
+            request.library.as_deref(),
+        )
+        .map_err(|(code, why)| {
+            let code = if code == 400 {
+                StatusCode::BAD_REQUEST
+            } else {
+                StatusCode::CONFLICT
+            };
+            error(code, why)
+        })?;
     Ok(json_response(json!({ "starting": true }).to_string()))
+}
+
+/// What the page offers to choose from for the next session: the audio devices and
+/// serial ports this machine has now, and the current choice. Listing the devices may
+/// take a moment (an audio server answering), so it runs off the server's thread.
+async fn session_options(State(shared): State<Arc<Shared>>) -> ApiResult {
+    let host = shared.audio_host().to_owned();
+    let (outputs, ports) = tokio::task::spawn_blocking(move || {
+        (
+            crate::commands::run::output_offers(&host),
+            underfoot::io::serial::list_ports(),
+        )
+    })
+    .await
+    .map_err(|_| {
+        error(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            "listing the devices failed",
+        )
+    })?;
+    let mut inputs = vec![
+        "gait:steps=4".to_owned(),
+        "gait:steps=200".to_owned(),
+        "osc:127.0.0.1:9000".to_owned(),
+    ];
+    inputs.extend(ports.into_iter().map(|p| format!("serial:{p}")));
+    Ok(json_response(
+        json!({
+            "inputs": inputs,
+            "outputs": outputs,
+            "files_allowed": !shared.is_remote(),
+        })
+        .to_string(),
+    ))
 }
 
 /// A marker into the session's record: refused (409, with why) when the session is not

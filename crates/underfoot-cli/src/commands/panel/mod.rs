@@ -16,8 +16,15 @@
 //!   `POST /api/fit` (`{"name": NAME, "uploads": [ID...]}`), `GET /api/fit/ID`;
 //!   `POST /api/markers` (`{"text": TEXT, "trial": N, "participant": P, "condition": C}`,
 //!   all but the text optional), a marker into the session's record (`--record DIR`);
-//!   `POST /api/session/start`: a new session once the last has ended (the same
-//!   arguments; the library reloaded; a record into `DIR-2`, `DIR-3`...).
+//!   `POST /api/session/start` (`{"input": SOURCE, "output": SINK, "library": FILE}`,
+//!   each optional, each as its flag takes it; an empty library is the built-in one): a
+//!   new session once the last has ended, with the page's choice in place of the last
+//!   session's (the rest of the command line kept; the library reloaded; a record into
+//!   `DIR-2`, `DIR-3`...); `GET /api/session/options`: what the page offers to choose
+//!   from (generated walks, an OSC port, this machine's serial ports and audio outputs).
+//!   A panel that serves other machines takes no file from the page (a replay, a WAV
+//!   output, a library): a token-holder elsewhere could otherwise name any file this
+//!   user may write.
 //!
 //! A `--library` that does not exist yet plays the built-in materials, and the first fit
 //! from the page creates it. A session that fails to start (a broken library, a device
@@ -124,8 +131,9 @@ pub fn run(args: &PanelArgs) -> anyhow::Result<()> {
     let shared = Arc::new(Shared::new(
         address,
         remote,
-        args.run.library_path(),
+        args.run.settings(),
         args.run.record_path(),
+        args.run.audio_host().to_owned(),
     )?);
     let url = if remote {
         format!("http://{address}/?token={}", shared.token())
@@ -162,9 +170,11 @@ pub fn run(args: &PanelArgs) -> anyhow::Result<()> {
     // same arguments (the library reloaded, so that fits saved into it play).
     let mut outcome;
     let mut n = 1;
+    // The command line's arguments, with each choice the page made since.
+    let mut chosen = args.run.clone();
     loop {
-        let run = args.run.for_panel_session(n);
-        shared.set_record(run.record_path());
+        let run = chosen.for_panel_session(n);
+        shared.set_session(run.settings(), run.record_path());
         stop.store(false, Ordering::SeqCst);
         outcome = run_session(&run, &stop, Some(&mut observer));
         if let Err(e) = &outcome {
@@ -181,12 +191,17 @@ pub fn run(args: &PanelArgs) -> anyhow::Result<()> {
             "underfoot: the session has ended; the panel stays up on {url} (start again from \
              the page; Ctrl-C to quit)"
         );
-        while !quit.load(Ordering::SeqCst) && !server.is_finished() && !shared.take_restart() {
+        let choice = loop {
+            if quit.load(Ordering::SeqCst) || server.is_finished() {
+                break None;
+            }
+            if let Some(choice) = shared.take_restart() {
+                break Some(choice);
+            }
             thread::sleep(std::time::Duration::from_millis(50));
-        }
-        if quit.load(Ordering::SeqCst) || server.is_finished() {
-            break;
-        }
+        };
+        let Some(choice) = choice else { break };
+        chosen.choose(&choice);
         n += 1;
         eprintln!("underfoot: starting session {n}, asked from the page");
     }

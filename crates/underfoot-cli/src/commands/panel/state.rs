@@ -17,6 +17,8 @@ use underfoot::engine::{ChannelLevels, MaterialBank};
 use underfoot::live::EndReason;
 use underfoot::live::{Remote, RunningSession, Status, Summary};
 use underfoot::material::MaterialModel;
+
+use crate::commands::run::{SessionChoice, SessionSettings};
 use underfoot::synthesis::{PreparedMaterial, SynthModel, VoiceConfig};
 use underfoot::units::{Newtons, SampleRate};
 
@@ -147,6 +149,8 @@ pub struct SessionView {
     pub last: Option<Status>,
     /// The session's record folder (`--record`), if it is recorded.
     pub record: Option<String>,
+    /// The input, output and library the session plays with.
+    pub settings: SessionSettings,
     /// Markers taken into the record, and the last one.
     pub markers: u64,
     pub last_marker: Option<serde_json::Value>,
@@ -270,6 +274,12 @@ impl SessionView {
             "latency_ms": s.output_latency.map(|l| l.0 * 1e3),
             "catalog_version": self.version,
             "record": self.record,
+            "settings": {
+                "input": self.settings.input,
+                "output": self.settings.output,
+                "library": self.settings.library.as_ref().map(|p| p.display().to_string()),
+                "interface": self.settings.interface.as_ref().map(|p| p.display().to_string()),
+            },
             "markers": self.markers,
             "last_marker": self.last_marker,
             "input": {
@@ -308,10 +318,10 @@ pub struct Shared {
     session: Mutex<SessionView>,
     pub uploads: Mutex<Uploads>,
     pub jobs: Jobs,
-    /// Where fitted materials are saved (`--library`), if anywhere.
-    pub library: Option<PathBuf>,
-    /// Set by the page's "start again" once the session has ended.
-    restart: std::sync::atomic::AtomicBool,
+    /// Set by the page's "start" once the session has ended, with what it chose.
+    restart: Mutex<Option<SessionChoice>>,
+    /// `--host`: where the page's list of audio outputs comes from.
+    audio_host: String,
     /// MiB of upload bodies that may be in memory at once, over all requests.
     pub upload_budget: Arc<tokio::sync::Semaphore>,
 }
@@ -321,8 +331,9 @@ impl Shared {
     pub fn new(
         address: SocketAddr,
         remote: bool,
-        library: Option<PathBuf>,
+        settings: SessionSettings,
         record: Option<PathBuf>,
+        audio_host: String,
     ) -> anyhow::Result<Self> {
         let port = address.port();
         let mut hosts = vec![
@@ -351,6 +362,7 @@ impl Shared {
             phase: Phase::Starting,
             last: None,
             record: record.map(|p| p.display().to_string()),
+            settings,
             markers: 0,
             last_marker: None,
         };
@@ -365,47 +377,72 @@ impl Shared {
             session: Mutex::new(view),
             uploads: Mutex::new(Uploads::new()?),
             jobs: Jobs::default(),
-            library,
-            restart: std::sync::atomic::AtomicBool::new(false),
+            restart: Mutex::new(None),
+            audio_host,
             upload_budget: Arc::new(tokio::sync::Semaphore::new(
                 super::http::UPLOADS_IN_FLIGHT_MIB as usize,
             )),
         })
     }
 
-    /// Asks for a new session, when the last one has ended.
+    /// Asks for a new session, when the last one has ended, with `choice` of input,
+    /// output and library (texts as the flags take them; `None` keeps the last one).
     ///
     /// # Errors
-    /// Why not: the session is running or starting.
-    pub fn request_restart(&self) -> Result<(), String> {
+    /// Why not: the session is running or starting (409), or the choice is not one the
+    /// panel takes (400, with why).
+    pub fn request_restart(
+        &self,
+        input: Option<&str>,
+        output: Option<&str>,
+        library: Option<&str>,
+    ) -> Result<(), (u16, String)> {
         let mut view = self.session();
         match view.phase {
             Phase::Ended(_) | Phase::Failed(_) => {
-                self.restart
-                    .store(true, std::sync::atomic::Ordering::SeqCst);
+                let choice =
+                    SessionChoice::parse(input, output, library, &view.settings, !self.remote)
+                        .map_err(|why| (400, why))?;
+                *self
+                    .restart
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(choice);
                 view.phase = Phase::Starting;
                 view.remote = None;
                 self.publish(&view);
                 Ok(())
             }
-            Phase::Starting => Err("the session is starting".into()),
-            Phase::Running => Err("the session is running: STOP it first".into()),
+            Phase::Starting => Err((409, "the session is starting".into())),
+            Phase::Running => Err((409, "the session is running: STOP it first".into())),
         }
     }
 
-    /// Takes a restart request, if the page made one.
-    pub fn take_restart(&self) -> bool {
+    /// Takes a restart request, if the page made one: what it chose.
+    pub fn take_restart(&self) -> Option<SessionChoice> {
         self.restart
-            .swap(false, std::sync::atomic::Ordering::SeqCst)
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .take()
     }
 
-    /// Where the next session records, as the page shows it.
-    pub fn set_record(&self, record: Option<PathBuf>) {
+    /// What the next session plays with and where it records, as the page shows it.
+    pub fn set_session(&self, settings: SessionSettings, record: Option<PathBuf>) {
         let mut view = self.session();
+        view.settings = settings;
         view.record = record.map(|p| p.display().to_string());
         view.markers = 0;
         view.last_marker = None;
         self.publish(&view);
+    }
+
+    /// Where fitted materials are saved (the session's library), if anywhere.
+    pub fn library(&self) -> Option<PathBuf> {
+        self.session().settings.library.clone()
+    }
+
+    /// The audio host (`--host`) whose devices the page offers.
+    pub fn audio_host(&self) -> &str {
+        &self.audio_host
     }
 
     /// The token state-changing requests carry.

@@ -161,6 +161,97 @@ pub struct RunArgs {
     synth: SynthArgs,
 }
 
+/// What a session plays with, as a person reads it: the texts `--input` and `--output`
+/// take, the library file (none: the built-in one) and the prosthetic interface, if any
+/// (its file sets the input and the servo output).
+#[cfg(feature = "panel")]
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SessionSettings {
+    pub input: String,
+    pub output: String,
+    pub library: Option<PathBuf>,
+    pub interface: Option<PathBuf>,
+}
+
+/// A choice of input, output or library for the next session, parsed as the flags
+/// parse them; `None` keeps the current one.
+#[cfg(feature = "panel")]
+#[derive(Debug, Clone, Default)]
+pub struct SessionChoice {
+    input: Option<InputArg>,
+    output: Option<OutputSpec>,
+    /// `Some(None)`: the built-in library.
+    library: Option<Option<PathBuf>>,
+}
+
+#[cfg(feature = "panel")]
+impl SessionChoice {
+    /// Parses the texts as `--input`, `--output` and `--library` would (an empty library
+    /// is the built-in one), and checks them against the session they change.
+    ///
+    /// # Errors
+    /// What is wrong, naming the field: a spec that does not parse, an input for a panel
+    /// that drives a prosthetic interface, or (with `paths_allowed` false, a panel that
+    /// serves other machines) a file the command line did not name.
+    pub fn parse(
+        input: Option<&str>,
+        output: Option<&str>,
+        library: Option<&str>,
+        current: &SessionSettings,
+        paths_allowed: bool,
+    ) -> Result<Self, String> {
+        let input = input
+            .map(str::trim)
+            .filter(|t| *t != current.input)
+            .map(|t| {
+                if let Some(file) = &current.interface {
+                    return Err(format!(
+                        "input {t:?}: this panel drives the prosthetic interface {}, whose \
+                         file sets the input; start the panel with --input instead of \
+                         --interface to choose it here",
+                        file.display()
+                    ));
+                }
+                t.parse::<InputArg>().map_err(|e| format!("input: {e}"))
+            })
+            .transpose()?;
+        let output = output
+            .map(str::trim)
+            .filter(|t| *t != current.output)
+            .map(|t| t.parse::<OutputSpec>().map_err(|e| format!("output: {e}")))
+            .transpose()?;
+        let library = library
+            .map(str::trim)
+            .map(|t| (!t.is_empty()).then(|| PathBuf::from(t)))
+            .filter(|l| *l != current.library);
+        if !paths_allowed {
+            let named = [
+                input.as_ref().and_then(|i| match &i.spec {
+                    InputSpec::Replay { .. } => Some("input"),
+                    _ => None,
+                }),
+                output.as_ref().and_then(|o| match o {
+                    OutputSpec::Wav { .. } => Some("output"),
+                    _ => None,
+                }),
+                library.as_ref().and_then(|l| l.as_ref().map(|_| "library")),
+            ];
+            if let Some(what) = named.into_iter().flatten().next() {
+                return Err(format!(
+                    "{what}: a file chosen from the page is taken only by a panel on a \
+                     loopback address (this one serves other machines); name it on the \
+                     command line instead"
+                ));
+            }
+        }
+        Ok(Self {
+            input,
+            output,
+            library,
+        })
+    }
+}
+
 /// `--input`: the spec, and the text it was given as.
 #[derive(Debug, Clone)]
 struct InputArg {
@@ -242,15 +333,6 @@ fn input_help() -> String {
 const DEFAULT_INPUT: &str = "gait:steps=4";
 
 impl RunArgs {
-    /// `--library`, if given (else the built-in library plays).
-    #[cfg_attr(
-        not(feature = "panel"),
-        expect(dead_code, reason = "the panel saves its fits there")
-    )]
-    pub fn library_path(&self) -> Option<std::path::PathBuf> {
-        self.synth.library.clone()
-    }
-
     /// These arguments as `panel` runs its `n`th session (from 1): a `--library` that
     /// does not exist yet plays the built-in materials until a fit creates it, and a
     /// restarted session records into `DIR-n`, beside the first's `DIR`.
@@ -269,6 +351,43 @@ impl RunArgs {
             args.record = Some(PathBuf::from(name));
         }
         args
+    }
+
+    /// The input, output and library this session plays with, as the panel's page shows
+    /// and offers to change them.
+    #[cfg(feature = "panel")]
+    pub fn settings(&self) -> SessionSettings {
+        SessionSettings {
+            input: match (&self.input, &self.interface) {
+                (Some(input), _) => input.text.clone(),
+                (None, Some(_)) => String::new(),
+                (None, None) => DEFAULT_INPUT.to_owned(),
+            },
+            output: self.output().to_string(),
+            library: self.synth.library.clone(),
+            interface: self.interface.clone(),
+        }
+    }
+
+    /// These arguments with the page's choice of input, output or library in place of
+    /// the command line's (what the choice leaves out stays as it was).
+    #[cfg(feature = "panel")]
+    pub fn choose(&mut self, choice: &SessionChoice) {
+        if let Some(input) = &choice.input {
+            self.input = Some(input.clone());
+        }
+        if let Some(output) = &choice.output {
+            self.output = Some(output.clone());
+        }
+        if let Some(library) = &choice.library {
+            self.synth.library.clone_from(library);
+        }
+    }
+
+    /// `--host`: the audio host.
+    #[cfg(feature = "panel")]
+    pub fn audio_host(&self) -> &str {
+        &self.host
     }
 
     /// `--record`, if given.
@@ -940,6 +1059,28 @@ fn output_report(output: &OutputReport) -> String {
     }
 }
 
+/// The outputs the panel's page offers: `null`, and with audio, the default device and
+/// each one the host lists now (none when the host cannot be asked).
+#[cfg(feature = "panel")]
+pub fn output_offers(host: &str) -> Vec<String> {
+    #[cfg(feature = "audio")]
+    {
+        let mut offers = vec!["null".to_owned()];
+        if let Ok(host) = host.parse() {
+            offers.push("audio".to_owned());
+            if let Ok(devices) = underfoot::io::audio::list_devices(host) {
+                offers.extend(devices.into_iter().map(|d| format!("audio:{}", d.name)));
+            }
+        }
+        offers
+    }
+    #[cfg(not(feature = "audio"))]
+    {
+        let _ = host;
+        vec!["null".to_owned()]
+    }
+}
+
 #[cfg(feature = "audio")]
 fn list_devices(host: &str) -> anyhow::Result<()> {
     let host = host
@@ -965,4 +1106,104 @@ fn list_devices(host: &str) -> anyhow::Result<()> {
 #[cfg(not(feature = "audio"))]
 fn list_devices(_host: &str) -> anyhow::Result<()> {
     bail!("this build has no audio output: rebuild with `--features audio`")
+}
+
+#[cfg(all(test, feature = "panel"))]
+mod tests {
+    use super::*;
+
+    fn current(interface: Option<&str>) -> SessionSettings {
+        SessionSettings {
+            input: "gait:steps=4".into(),
+            output: "null".into(),
+            library: Some(PathBuf::from("lab.json")),
+            interface: interface.map(PathBuf::from),
+        }
+    }
+
+    #[test]
+    fn a_choice_parses_as_the_flags_do_and_keeps_what_it_leaves_out() {
+        let c = SessionChoice::parse(
+            Some("gait:steps=8"),
+            Some(" null "),
+            Some(""),
+            &current(None),
+            true,
+        )
+        .unwrap();
+        assert_eq!(c.input.as_ref().unwrap().text, "gait:steps=8");
+        assert!(c.output.is_none(), "the same output is no change");
+        assert_eq!(c.library, Some(None), "empty: the built-in library");
+        let same = SessionChoice::parse(
+            Some("gait:steps=4"),
+            Some("null"),
+            Some("lab.json"),
+            &current(None),
+            true,
+        )
+        .unwrap();
+        assert!(same.input.is_none() && same.output.is_none() && same.library.is_none());
+        let e = SessionChoice::parse(Some("gait:stepz=1"), None, None, &current(None), true)
+            .unwrap_err();
+        assert!(e.starts_with("input: ") && e.contains("stepz"), "{e}");
+        let e =
+            SessionChoice::parse(None, Some("speaker"), None, &current(None), true).unwrap_err();
+        assert!(e.starts_with("output: "), "{e}");
+    }
+
+    #[test]
+    fn a_panel_for_other_machines_takes_no_file_and_an_interface_keeps_its_input() {
+        for (input, output, library, what) in [
+            (Some("replay:a.csv"), None, None, "input"),
+            (None, Some("wav:/etc/x.wav"), None, "output"),
+            (None, None, Some("other.json"), "library"),
+        ] {
+            let e =
+                SessionChoice::parse(input, output, library, &current(None), false).unwrap_err();
+            assert!(e.starts_with(what) && e.contains("loopback"), "{e}");
+        }
+        // No file named: taken; the command line's own library is no change.
+        let c = SessionChoice::parse(
+            Some("gait:steps=9"),
+            Some("null"),
+            Some("lab.json"),
+            &current(None),
+            false,
+        )
+        .unwrap();
+        assert!(c.input.is_some() && c.library.is_none());
+        let e = SessionChoice::parse(
+            Some("gait:steps=9"),
+            None,
+            None,
+            &current(Some("skin.toml")),
+            true,
+        )
+        .unwrap_err();
+        assert!(e.contains("skin.toml"), "{e}");
+    }
+
+    #[test]
+    fn a_choice_replaces_only_what_it_names() {
+        #[derive(clap::Parser)]
+        struct Cli {
+            #[command(flatten)]
+            run: RunArgs,
+        }
+        let mut args = <Cli as clap::Parser>::parse_from([
+            "x",
+            "--input",
+            "gait:steps=2",
+            "--library",
+            "a.json",
+        ])
+        .run;
+        let choice =
+            SessionChoice::parse(None, Some("wav:o.wav"), None, &args.settings(), true).unwrap();
+        args.choose(&choice);
+        let s = args.settings();
+        assert_eq!(s.input, "gait:steps=2");
+        assert_eq!(s.output, "wav:o.wav");
+        assert_eq!(s.library, Some(PathBuf::from("a.json")));
+    }
 }

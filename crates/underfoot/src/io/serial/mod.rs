@@ -9,7 +9,7 @@
 //! |---|---|
 //! | [`protocol`] | the wire format, and what the firmware must do; [`encode_frame`], [`encode_servo_frame`] and [`FrameDecoder`], with no I/O |
 //! | [`source`] | [`SerialSource`]: a serial port as an [`EventSource`](super::EventSource), one [`Event::Force`](crate::engine::Event::Force) per channel per frame, reopened with a [`Backoff`](super::Backoff) when it hangs up (see [`super`], *A lost device*) |
-//! | `port` | opening a port 8N1, and telling a quiet line from a lost port (shared with [`prosthetic`](super::prosthetic)) |
+//! | `port` | opening a port 8N1, telling a quiet line from a lost port (shared with [`prosthetic`](super::prosthetic)), and [`list_ports`] |
 //!
 //! The firmware's side of the protocol, in Rust, for tests and to stand in for a board,
 //! is [`ReferenceSender`](crate::sim::ReferenceSender), among the simulators.
@@ -21,6 +21,7 @@ pub mod source;
 #[cfg(test)]
 mod tests;
 
+pub use port::list_ports;
 pub(crate) use port::{describe, is_quiet, open_port};
 pub use protocol::{
     DecoderStats, FORCE_FRAME, FRAME_VERSION, Frame, FrameData, FrameDecoder, FrameError,

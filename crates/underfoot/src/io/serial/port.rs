@@ -31,6 +31,17 @@ pub(crate) fn open_port(
         })
 }
 
+/// The serial ports this machine has now, by the names `serial:PORT` takes; empty where
+/// they cannot be listed (a container without udev, a platform serialport does not
+/// enumerate): a list to choose from, not a check.
+pub fn list_ports() -> Vec<String> {
+    let mut names: Vec<String> = serialport::available_ports()
+        .map(|ports| ports.into_iter().map(|p| p.port_name).collect())
+        .unwrap_or_default();
+    names.sort();
+    names
+}
+
 /// A read that found nothing (yet): not a failure of the port.
 pub(crate) fn is_quiet(e: &io::Error) -> bool {
     matches!(

@@ -54,6 +54,8 @@ const view = {
   elapsed: 0,          // the session's time, from its last status
   notes: [],           // markers put into the record from this page: session times
   recording: null,     // what the trial bar last showed
+  choosing: false,     // the session form is open for the next session's choice
+  offers: null,        // /api/session/options, once asked
 
 };
 
@@ -89,6 +91,7 @@ function update(s) {
   view.ceilingDb = s.ceiling_db;
   view.elapsed = s.elapsed_s;
   setRecording(s.record, s.state === "running");
+  setSettings(s);
   $("#session").textContent = s.session;
   $("#elapsed").textContent = `${s.elapsed_s.toFixed(1)} s`;
   $("#events").textContent = s.input.events;
@@ -106,7 +109,7 @@ function update(s) {
     $("#stop").disabled = true;
     $("#restart").hidden = false;
     setLink("engine stopped", "bad");
-    banner(`The engine has stopped: ${s.reason}. "Start again" starts a new session with the same settings.`, s.state === "failed");
+    banner(`The engine has stopped: ${s.reason}. "Start" starts a new session with the input, output and library under Session.`, s.state === "failed");
   } else {
     $("#stop").disabled = false;
     $("#restart").hidden = true;
@@ -320,9 +323,55 @@ $("#next-trial").addEventListener("click", async () => {
   await mark(`trial ${t.value} starts`);
 });
 
+// The session's input, output and library: shown while it runs, chosen once it has
+// ended (filled from the last session then, and left alone while the person types).
+function setSettings(s) {
+  const open = s.state === "ended" || s.state === "failed";
+  const fields = { input: $("#set-input"), output: $("#set-output"), library: $("#set-library") };
+  if (open && !view.choosing) {
+    view.choosing = true;
+    loadOffers();
+  }
+  if (!open) view.choosing = false;
+  if (open && fields.input.dataset.filled) return;
+  const set = s.settings;
+  fields.input.value = set.interface ? `(the interface ${set.interface})` : set.input;
+  fields.output.value = set.output;
+  fields.library.value = set.library || "";
+  fields.input.disabled = !open || Boolean(set.interface);
+  fields.output.disabled = !open;
+  fields.library.disabled = !open || (view.offers !== null && !view.offers.files_allowed);
+  for (const f of Object.values(fields)) {
+    if (open) f.dataset.filled = "1"; else delete f.dataset.filled;
+  }
+}
+
+async function loadOffers() {
+  try {
+    view.offers = await api("GET", "/api/session/options");
+  } catch (e) {
+    return;
+  }
+  const fill = (list, items) => list.replaceChildren(...items.map((v) => el("option", { value: v })));
+  fill($("#input-offers"), view.offers.inputs);
+  fill($("#output-offers"), view.offers.outputs);
+  if (!view.offers.files_allowed) {
+    const lib = $("#set-library");
+    lib.disabled = true;
+    lib.title = "This panel serves other machines: its library is the command line's";
+  }
+}
+
 $("#restart").addEventListener("click", () => {
+  const body = {};
+  if (!$("#set-input").disabled) body.input = $("#set-input").value;
+  body.output = $("#set-output").value;
+  if (!$("#set-library").disabled) body.library = $("#set-library").value;
   $("#restart").hidden = true;
-  api("POST", "/api/session/start", {}).catch((e) => banner(`start: ${e.message}`, true));
+  api("POST", "/api/session/start", body).catch((e) => {
+    $("#restart").hidden = false;
+    banner(`start: ${e.message}`, true);
+  });
 });
 
 $("#stop").addEventListener("click", () => {
