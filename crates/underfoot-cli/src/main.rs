@@ -66,6 +66,9 @@ fn command_line() -> clap::Command {
 }
 
 fn main() -> ExitCode {
+    // No command replaces a file it has read, whether or not it lists it as an input
+    // (underfoot::atomic_file, *Inputs*).
+    underfoot::atomic_file::refuse_outputs_over_reads();
     let parsed = command_line()
         .try_get_matches()
         .and_then(|m| Cli::from_arg_matches(&m));

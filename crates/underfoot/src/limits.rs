@@ -61,7 +61,11 @@ pub fn read_capped(path: &Path, cap: u64) -> std::io::Result<Vec<u8>> {
             ),
         )
     };
-    let declared = file.metadata().map(|m| m.is_file().then_some(m.len()))?;
+    let meta = file.metadata()?;
+    // Noted before the bytes are read: an output must not replace a file the command
+    // started to read, even one it then refused.
+    crate::atomic_file::note_read(&meta);
+    let declared = meta.is_file().then_some(meta.len());
     if declared.is_some_and(|n| n > cap) {
         return Err(too_large());
     }

@@ -1506,18 +1506,25 @@ fn panel_cannot_be_held_down_by_idle_connections_or_big_uploads() {
     assert!(reply.starts_with("HTTP/1.1 413"), "{reply}");
 
     // The host named in the request line, and a second Host header, must be this one.
-    let absolute = format!(
+    // (A connection closed unanswered, which a loaded machine still draining the crowd
+    // gave once in CI, refuses nothing and accepts nothing: it is asked again.)
+    let answer = |request: &str| {
+        for _ in 0..3 {
+            let reply = send_raw(addr, request.as_bytes(), Duration::from_secs(5));
+            if !reply.is_empty() {
+                return String::from_utf8_lossy(&reply).into_owned();
+            }
+            std::thread::sleep(Duration::from_millis(500));
+        }
+        String::new()
+    };
+    let reply = answer(&format!(
         "GET http://evil.example/api/status HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
-    );
-    let reply =
-        String::from_utf8_lossy(&send_raw(addr, absolute.as_bytes(), Duration::from_secs(5)))
-            .into_owned();
+    ));
     assert!(reply.starts_with("HTTP/1.1 421"), "{reply}");
-    let twice = format!(
+    let reply = answer(&format!(
         "GET /api/status HTTP/1.1\r\nHost: {addr}\r\nHost: evil.example\r\nConnection: close\r\n\r\n"
-    );
-    let reply = String::from_utf8_lossy(&send_raw(addr, twice.as_bytes(), Duration::from_secs(5)))
-        .into_owned();
+    ));
     assert!(reply.starts_with("HTTP/1.1 400"), "{reply}");
 }
 

@@ -26,7 +26,8 @@ impl OutputFile {
             let held = file.metadata().map_err(io(&path, "locking"))?;
             match fs::metadata(&path) {
                 Ok(now) if identity(&now) == identity(&held) => {
-                    return Ok(EditLock { file, path });
+                    let edited = super::reads::begin_edit(target);
+                    return Ok(EditLock { file, path, edited });
                 }
                 _ => {}
             }
@@ -39,6 +40,8 @@ impl OutputFile {
 pub struct EditLock {
     file: File,
     path: PathBuf,
+    /// The file being edited, which its edit may read and replace.
+    edited: Option<super::reads::Id>,
 }
 
 impl Drop for EditLock {
@@ -50,5 +53,8 @@ impl Drop for EditLock {
             let _ = fs::remove_file(&self.path);
         }
         let _ = fs4::FileExt::unlock(&self.file);
+        if let Some(id) = self.edited {
+            super::reads::end_edit(id);
+        }
     }
 }

@@ -27,8 +27,28 @@
 //!    the output does not exist yet, the same canonical path;
 //! 5. refuses two outputs of one command naming the same file ([`OutputFile::check_all`]).
 //!
+//! In a program that asks for it (the CLI does), the rename then refuses any file the
+//! process has read (see *Inputs* below).
+//!
 //! Refusals are [`AtomicWriteError`]s with [`REFUSED`] as their action, naming the path
 //! given and the reason.
+//!
+//! # Inputs
+//!
+//! A command names its inputs to [`OutputFile::check`] so that a clash is said before any
+//! work; but a list per command is a list a new command or option can forget. So, once a
+//! program calls [`refuse_outputs_over_reads`] (the CLI does first thing; a library
+//! user's `load` then `save` of one file is theirs to decide), the policy also knows
+//! every file the process has read: the crate reads files through one
+//! function, [`crate::limits::read_capped`] (libraries, documents, tracks, recordings),
+//! which notes each regular file's device, inode and change time ([`note_read`]; the
+//! streaming readers call it too), and [`OutputFile::persist`], just before the rename
+//! that would replace it, refuses a target so noted (the temporary file is removed, the
+//! target kept). At the rename it holds whatever the order of reads and checks: an
+//! output cannot replace a file the command read, whether or not the command listed it.
+//! A read-modify-write is the one exception: the file an [`EditLock`] holds is read and
+//! replaced by design (which is why the early [`OutputFile::check`] does not look at the
+//! reads: a library read at a session's start may be edited by a fit later).
 //!
 //! # Writing
 //!
@@ -74,6 +94,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 mod lock;
 mod policy;
+mod reads;
+pub use reads::{note_read, refuse_outputs_over_reads};
 mod stale;
 pub use stale::process_is_gone;
 mod write;

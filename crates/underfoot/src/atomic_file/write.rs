@@ -139,6 +139,7 @@ impl OutputFile {
             .map_err(io(tmp, "flushing the temporary file to disk"))?;
         // Once more just before the rename: the check may have been minutes ago (a fit).
         check_kind(&self.given, target)?;
+        super::reads::check_not_read(&self.given, target)?;
         fs::rename(tmp, target).map_err(io(&self.given, "renaming the temporary file over it"))?;
         // Make the rename itself durable. Not every platform can open a directory; the
         // data is already safe in the file, so a failure here is not worth failing the save.

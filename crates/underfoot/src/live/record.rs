@@ -1295,7 +1295,11 @@ impl SessionRecord {
                 reason: e.to_string(),
             })
         };
-        let mut reader = hound::WavReader::open(path).map_err(bad)?;
+        let file = fs::File::open(path).map_err(|e| bad(hound::Error::IoError(e)))?;
+        if let Ok(meta) = file.metadata() {
+            crate::atomic_file::note_read(&meta);
+        }
+        let mut reader = hound::WavReader::new(std::io::BufReader::new(file)).map_err(bad)?;
         let spec = reader.spec();
         let n = usize::from(spec.channels.max(1));
         let mut channels = vec![Vec::with_capacity(reader.duration() as usize); n];
