@@ -650,3 +650,23 @@ fn the_seeds_parse() {
     from_json::<UserTable>(&text(&compensation[3]), origin).expect("a table seed");
     from_json::<ResponseFile>(&text(&compensation[4]), origin).expect("a legacy response seed");
 }
+
+/// The audio crashers are overflows inside the decoder library, which this test build
+/// compiles without overflow checks (the dependencies' test profile), so replaying them
+/// above cannot fail. What must hold instead: each is refused by the header check before
+/// the decoder sees it.
+#[test]
+fn audio_crashers_are_refused_before_the_decoder() {
+    let files = regression_files("audio");
+    assert!(!files.is_empty());
+    for file in files {
+        let bytes = std::fs::read(&file).expect("a regression file is readable");
+        let e = underfoot::recording::read_bytes("fuzz", &bytes, None)
+            .expect_err("a crasher is refused");
+        assert!(
+            e.to_string().contains("channels"),
+            "{}: refused, but not by the header check: {e}",
+            file.display()
+        );
+    }
+}

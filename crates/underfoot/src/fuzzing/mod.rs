@@ -1,5 +1,5 @@
 //! Fuzz targets: one per parser of outside input, shared by the cargo-fuzz crate
-//! (`fuzz/`, nightly) and the stable property tests (`tests/fuzz.rs`), so that both run
+//! (`fuzz/`, libFuzzer, run by `scripts/fuzz`) and the stable property tests (`tests/fuzz.rs`), so that both run
 //! the same bodies.
 //!
 //! Not part of the API: no stability promise, hidden from the docs.

@@ -62,7 +62,8 @@ pub(crate) fn decode_audio(
 }
 
 /// What is wrong with a RIFF/WAVE header that the decoder library does not check before
-/// using it: a `fmt ` chunk declaring no channels or more than [`MAX_WAV_CHANNELS`].
+/// using it: a `fmt ` chunk (any of them) declaring no channels or more than
+/// [`MAX_WAV_CHANNELS`].
 /// `None` for anything else, including files that are not WAV.
 ///
 /// The probe looks for a format's marker past the start of the file too (it skips junk
@@ -88,7 +89,8 @@ fn riff_fault(bytes: &[u8]) -> Option<String> {
                     "the WAV header declares {channels} channels (1 to {MAX_WAV_CHANNELS})"
                 ));
             }
-            return None;
+            // Not the end: the decoder reads every `fmt ` chunk, and a later one is the
+            // format it keeps (found by libFuzzer).
         }
         // Chunks are padded to an even length.
         at = at
