@@ -251,16 +251,19 @@ fn the_panel_works_in_a_headless_browser() {
         return;
     }
     let Some(data) = footsteps_dir() else { return };
+    // A --library that does not exist yet: the built-in materials play until the fit
+    // from the page creates it.
     let panel = Panel::start(&[
         "--input",
         "gait:steps=120,channels=2",
         "--output",
         "null",
-        "--material",
-        "gravel,snow",
+        "--library",
+        "lab.json",
         "--record",
         "rec",
     ]);
+    assert!(!panel.tmp.path().join("lab.json").exists());
     let browser = Browser::start();
     let url = format!("http://{}/", panel.addr);
     browser.session_call("POST", "/url", &json!({ "url": url }));
@@ -290,7 +293,7 @@ fn the_panel_works_in_a_headless_browser() {
         json!([
             ["gait:steps=120,channels=2", true],
             ["null", true],
-            ["", true]
+            ["lab.json", true]
         ])
     );
     // The meters move: the output meter's width and the force values change.
@@ -375,6 +378,8 @@ fn the_panel_works_in_a_headless_browser() {
         "{result}"
     );
     assert!(panel.library_names().iter().any(|n| n == "lab-gravel"));
+    let saved = underfoot::material::Library::load(panel.tmp.path().join("lab.json")).unwrap();
+    assert_eq!(saved.names(), ["lab-gravel"], "the fit created the library");
     browser.script("window.scrollTo(0, 0)");
     std::thread::sleep(Duration::from_millis(500));
     let shot = screenshots().join("panel.png");
@@ -483,9 +488,8 @@ fn the_panel_works_in_a_headless_browser() {
     );
     assert_eq!(events.last().unwrap()["reason"], "remote_stop");
 
-    // Started again from the page: a new session, the fit of the last one still listed
-    // (kept for the panel, there being no --library), recording into rec-2, with the
-    // output chosen on the page.
+    // Started again from the page: a new session, the fit still listed (read back from
+    // the library it created), recording into rec-2, with the output chosen on the page.
     browser.wait_for(
         Duration::from_secs(5),
         "the session's fields open for the next one",

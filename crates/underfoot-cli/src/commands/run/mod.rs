@@ -471,16 +471,23 @@ impl RunArgs {
         let Some(dir) = &self.record else {
             return Ok(None);
         };
+        let builtin = || -> anyhow::Result<String> {
+            let text = serde_json::to_vec(&underfoot::material::builtin::builtin())?;
+            Ok(record::sha256_hex(&text))
+        };
         let library = match &self.synth.library {
+            // The panel's library that a fit will create: the built-in one plays until then.
+            Some(path) if self.synth.library_created_by_fits && !path.exists() => (
+                format!("built-in ({} does not exist yet)", path.display()),
+                builtin()?,
+            ),
             Some(path) => {
-                let bytes = std::fs::read(path)
-                    .with_context(|| format!("reading the library {}", path.display()))?;
+                let bytes =
+                    underfoot::limits::read_capped(path, underfoot::limits::MAX_LIBRARY_BYTES)
+                        .with_context(|| format!("reading the library {}", path.display()))?;
                 (path.display().to_string(), record::sha256_hex(&bytes))
             }
-            None => {
-                let text = serde_json::to_vec(&underfoot::material::builtin::builtin())?;
-                ("built-in".to_owned(), record::sha256_hex(&text))
-            }
+            None => ("built-in".to_owned(), builtin()?),
         };
         let s = &self.synth;
         Ok(Some(RecordSettings {
