@@ -144,14 +144,14 @@ fn describe(m: &MaterialModel) -> String {
     }
     let _ = writeln!(
         s,
-        "  evidence     {} strikes, {:.1} s, method {}",
+        "  evidence     {} strikes\n  method       {}\n  fit time     {:.2} s (computing, not recording)",
         m.fit.strikes,
-        m.fit.fit_seconds,
         if m.fit.method.is_empty() {
             "(not recorded)"
         } else {
             &m.fit.method
-        }
+        },
+        m.fit.fit_seconds,
     );
     let _ = writeln!(s, "  sources");
     for src in &m.sources {
@@ -164,10 +164,19 @@ fn describe(m: &MaterialModel) -> String {
     }
     // Poles as resonances: what a person tuning a material thinks in.
     if let Some(sos) = m.sos() {
-        let _ = writeln!(s, "  poles        radius, frequency");
-        for p in sos.poles().iter().filter(|p| p.im >= 0.0 && p.norm() > 0.0) {
-            let f = p.arg() * m.sample_rate.hz() / (2.0 * std::f64::consts::PI);
-            let _ = writeln!(s, "    {:.6}  {:.1} Hz", p.norm(), f);
+        let _ = writeln!(s, "  poles        radius, frequency (from the lowest)");
+        let mut poles: Vec<(f64, f64)> = sos
+            .poles()
+            .iter()
+            .filter(|p| p.im >= 0.0 && p.norm() > 0.0)
+            .map(|p| {
+                let f = p.arg() * m.sample_rate.hz() / (2.0 * std::f64::consts::PI);
+                (f, p.norm())
+            })
+            .collect();
+        poles.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        for (f, radius) in poles {
+            let _ = writeln!(s, "    {radius:.6}  {f:.1} Hz");
         }
     }
     s

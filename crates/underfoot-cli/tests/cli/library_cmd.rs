@@ -165,3 +165,31 @@ fn builtin_library_lists_and_flags_conflict() {
     let o = run(&["library", "list", "--library", "/nonexistent/dir/lib.json"]);
     assert!(assert_error(&o).contains("/nonexistent/dir/lib.json"));
 }
+
+/// `library show` on a fitted material (issue 31): the poles from the lowest frequency
+/// up, and the fit's computing time on a line of its own, not beside the strikes as if it
+/// were the recordings' length.
+#[test]
+fn show_sorts_the_poles_and_says_what_its_time_is() {
+    let o = run(&["library", "show", "gravel"]);
+    assert_ok(&o);
+    let out = stdout(&o);
+    let freqs: Vec<f64> = out
+        .lines()
+        .skip_while(|l| !l.contains("poles"))
+        .skip(1)
+        .filter_map(|l| {
+            l.trim()
+                .strip_suffix(" Hz")?
+                .split_whitespace()
+                .nth(1)?
+                .parse()
+                .ok()
+        })
+        .collect();
+    assert_eq!(freqs.len(), 8, "{out}");
+    assert!(freqs.windows(2).all(|w| w[0] <= w[1]), "{freqs:?}");
+    let evidence = out.lines().find(|l| l.contains("evidence")).unwrap();
+    assert_eq!(evidence.trim(), "evidence     3 strikes", "{out}");
+    assert!(out.contains("fit time "), "{out}");
+}

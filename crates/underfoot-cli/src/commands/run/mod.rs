@@ -63,8 +63,8 @@ pub struct RunArgs {
     /// Output channels (actuators); default: the track's channels, else 1.
     #[arg(long, value_name = "N", value_parser = parse_channels)]
     channels: Option<usize>,
-    /// Frames per device buffer, 16 to 8192 (audio: requested; wav/null: the pacing
-    /// period).
+    /// Frames per device buffer, 16 to 8192 (audio: requested, default the device's own
+    /// choice; wav/null: the pacing period, default 256).
     #[arg(long, value_name = "N", value_parser = parse_buffer)]
     buffer: Option<u32>,
     /// Audio host: default, alsa or jack.
