@@ -11,6 +11,7 @@ mod output;
 mod plot;
 mod report;
 mod steps;
+mod vocabulary;
 
 use std::process::ExitCode;
 
@@ -69,8 +70,12 @@ fn main() -> ExitCode {
     // No command replaces a file it has read, whether or not it lists it as an input
     // (underfoot::atomic_file, *Inputs*).
     underfoot::atomic_file::refuse_outputs_over_reads();
+    let (args, renamed) = vocabulary::modernise(std::env::args_os().collect());
+    for warning in renamed {
+        eprintln!("{warning}");
+    }
     let parsed = command_line()
-        .try_get_matches()
+        .try_get_matches_from(args)
         .and_then(|m| Cli::from_arg_matches(&m));
     let cli = match parsed {
         Ok(cli) => cli,

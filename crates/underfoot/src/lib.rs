@@ -21,7 +21,7 @@
 //! | 9 | [`synthesis`] | a material's modes at the audio rate; the voice with its per-step perturbation | [iir] |
 //! | 10 | [`engine`] | N channels in real time: lock-free events, no allocation in the callback; offline renders | |
 //! | 11 | [`io`] | inputs (CSV replay, serial, OSC, gait) and outputs (WAV, audio devices), each device behind a feature | |
-//! | 12 | [`sim`] | simulators, not production paths: a tile, a user's leg, a sensor board, the prosthetic interface's board, for tests, examples, `--device simulated` and a simulated interface link | |
+//! | 12 | [`sim`] | simulators, not production paths: a tile, a user's leg, a sensor board, the prosthetic interface's board, for tests, examples, `--device-under-test simulated` and a simulated interface link | |
 //! | 13 | [`live`] | a live session: an input polled into the engine, an output playing it (a sound card, or paced like one into a WAV file or nowhere), its summary; its record (force, strikes, changes, markers, output) in one folder, and Lab Streaming Layer streams (`lsl` feature) | |
 //! | 14 | [`export`], [`fuzzing`] | a library as a C99 header for firmware; the fuzz targets (hidden) | |
 //!

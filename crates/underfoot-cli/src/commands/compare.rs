@@ -59,10 +59,10 @@ use crate::steps::{TimeRow, render_and_compare, time_table};
 #[derive(Debug, Args)]
 pub struct CompareArgs {
     /// Also write the table as JSON here (`-`: standard output, after the table).
-    #[arg(long, value_name = "FILE.json")]
+    #[arg(long = "json-out", value_name = "FILE.json")]
     json: Option<PathBuf>,
     /// Draw one spectrum plot per material into this directory (created if missing).
-    #[arg(long, value_name = "DIR")]
+    #[arg(long = "plot-dir", value_name = "DIR")]
     plot: Option<PathBuf>,
     /// Image format of the plots.
     #[arg(long, value_name = "svg|png", default_value = "svg", value_parser = ["svg", "png"])]

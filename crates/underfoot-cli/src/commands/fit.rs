@@ -45,10 +45,10 @@ use crate::steps::{TimeRow, render_and_compare, time_table};
 pub struct FitArgs {
     /// Name of the material (letters, digits, '-', '_', '.'); replaces a material of the
     /// same name in the library.
-    #[arg(long, value_name = "NAME")]
+    #[arg(long = "name", value_name = "NAME")]
     material: String,
     /// Library file to add the material to (created if missing).
-    #[arg(long, value_name = "LIB.json")]
+    #[arg(long = "library", value_name = "LIB.json")]
     out: PathBuf,
     /// Also write a JSON summary of the fit here, and check how the model generalises:
     /// fit on all recordings but one, measure on the one left out, for each in turn
@@ -59,7 +59,7 @@ pub struct FitArgs {
     #[arg(long, value_name = "P.svg|P.png")]
     plot: Option<PathBuf>,
     /// Analysis sample rate in Hz [default: 2000].
-    #[arg(long, value_name = "HZ", value_parser = parse_analysis_rate)]
+    #[arg(long = "analysis-rate", value_name = "HZ", value_parser = parse_analysis_rate)]
     rate: Option<SampleRate>,
     /// Band of interest in Hz [default: 20:900].
     #[arg(long, value_name = "LO:HI")]
@@ -166,7 +166,7 @@ impl FitArgs {
         if !cfg.analysis.band.fits(cfg.analysis.rate) {
             bail!(
                 "band {} does not fit the analysis rate {}: the upper edge must be below {} \
-                 (use --band or --rate)",
+                 (use --band or --analysis-rate)",
                 cfg.analysis.band,
                 cfg.analysis.rate,
                 cfg.analysis.rate.nyquist()
@@ -251,7 +251,7 @@ fn with_flag_hint(e: BuildError) -> anyhow::Error {
 
 /// Runs `underfoot fit`.
 pub fn run(args: &FitArgs) -> anyhow::Result<()> {
-    validate_name(&args.material).map_err(|e| anyhow::anyhow!("--material: {e}"))?;
+    validate_name(&args.material).map_err(|e| anyhow::anyhow!("--name: {e}"))?;
     let cfg = args.config()?;
     check_parent_dir(&args.out, "library")?;
     if let Some(report) = &args.report {

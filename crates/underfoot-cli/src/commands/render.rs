@@ -67,7 +67,7 @@ pub struct RenderArgs {
     #[arg(long = "with-force", hide = true)]
     with_force: bool,
     /// Sample format: f32, i16 or i24.
-    #[arg(long, default_value = "f32", value_parser = parse_format)]
+    #[arg(long = "sample-format", default_value = "f32", value_parser = parse_format)]
     format: WavFormat,
     /// Silence rendered after the last force reading (lets the last step ring out).
     #[arg(long, default_value_t = 1.0, value_name = "SECONDS", value_parser = parse_tail)]

@@ -65,8 +65,8 @@ pub struct SynthArgs {
     /// Hunt-Crossley impacts and aggregate of the material's `physical` entry).
     #[arg(long, default_value = "iir", value_name = "MODEL", value_parser = parse_model)]
     pub model: SynthModel,
-    /// Output sample rate.
-    #[arg(long, default_value_t = 48_000, value_name = "HZ")]
+    /// Audio sample rate, in Hz.
+    #[arg(long = "audio-rate", default_value_t = 48_000, value_name = "HZ")]
     pub rate: u32,
     /// Output gain before the limiter, in dB, on top of each material's playback level.
     #[arg(
@@ -176,7 +176,7 @@ impl SynthArgs {
     pub fn setup(&self, channels: usize) -> anyhow::Result<Setup> {
         anyhow::ensure!(
             (8_000..=384_000).contains(&self.rate),
-            "--rate {} Hz: need 8000 to 384000",
+            "--audio-rate {} Hz: need 8000 to 384000",
             self.rate
         );
         anyhow::ensure!(
@@ -236,7 +236,7 @@ impl SynthArgs {
             let eq: EqualizerFile = document::load(path)?;
             anyhow::ensure!(
                 eq.weights.rate == rate,
-                "{} equalizes at {} Hz; use --rate {}",
+                "{} equalizes at {} Hz; use --audio-rate {}",
                 path.display(),
                 eq.weights.rate.0,
                 eq.weights.rate.0

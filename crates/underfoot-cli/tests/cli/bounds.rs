@@ -261,7 +261,7 @@ fn durations_rates_and_counts_are_bounded_when_parsed() {
             "sweep",
             "--out",
             "s.json",
-            "--duration",
+            "--sweep-duration",
             "1e19",
         ],
         &[
@@ -285,7 +285,7 @@ fn durations_rates_and_counts_are_bounded_when_parsed() {
             "sweep",
             "--out",
             "s.json",
-            "--rate",
+            "--audio-rate",
             "4000000000",
         ],
     ] {
@@ -319,13 +319,13 @@ fn strikes_wav(path: &Path) {
 fn fit_bands_rates_and_endless_inputs_end_promptly() {
     let dir = tempfile::tempdir().expect("tempdir");
     strikes_wav(&dir.path().join("steps.wav"));
-    let fit = ["fit", "--material", "x", "--out", "lib.json"];
+    let fit = ["fit", "--name", "x", "--library", "lib.json"];
     // Main spun forever inside the SVD on the first, and aborted on a 34 GB allocation on
     // the second.
     for (flag, value) in [
         ("--band", "1e-200:900"),
         ("--band", "20:1e300"),
-        ("--rate", "4000000000"),
+        ("--analysis-rate", "4000000000"),
         ("--order", "100000"),
         ("--savgol", "1000000001:3"),
     ] {

@@ -21,7 +21,7 @@ fn a_compensation_session_on_the_simulated_tile() {
     let o = run(&[
         "calibrate",
         "equalize",
-        "--device",
+        "--device-under-test",
         s(&unloaded),
         "--passes",
         "3",
@@ -122,7 +122,7 @@ fn a_compensation_session_on_the_simulated_tile() {
     let err = assert_error(&run(&[
         "calibrate",
         "equalize",
-        "--device",
+        "--device-under-test",
         s(&eq),
         "--out",
         s(&p("eq-again.json")),
@@ -159,7 +159,7 @@ fn a_compensation_session_on_the_simulated_tile() {
     ]));
 }
 
-/// `--device audio` in a build without the `audio` feature says so, rather than treating
+/// `--device-under-test audio` in a build without the `audio` feature says so, rather than treating
 /// `audio` as a file name.
 #[cfg(not(feature = "audio"))]
 #[test]
@@ -169,7 +169,7 @@ fn calibrate_on_a_sound_card_needs_the_audio_feature() {
     let o = run(&[
         "calibrate",
         "sweep",
-        "--device",
+        "--device-under-test",
         "audio",
         "--output-device",
         "hw:1",
@@ -284,7 +284,7 @@ fn an_uneven_device_says_where_the_boost_is_capped_and_flattens_when_allowed() {
     let o = run(&[
         "calibrate",
         "equalize",
-        "--device",
+        "--device-under-test",
         s(&device),
         "--out",
         s(&eq),
@@ -304,7 +304,7 @@ fn an_uneven_device_says_where_the_boost_is_capped_and_flattens_when_allowed() {
     let o = run(&[
         "calibrate",
         "equalize",
-        "--device",
+        "--device-under-test",
         s(&device),
         "--out",
         s(&eq),
@@ -343,7 +343,7 @@ fn a_replayed_device_is_never_its_own_output() {
             let o = run(&[
                 "calibrate",
                 command,
-                "--device",
+                "--device-under-test",
                 s(&device),
                 "--out",
                 s(out),
@@ -373,7 +373,7 @@ fn bins_are_refused_with_the_range_the_equalizer_takes() {
         let o = run(&[
             "calibrate",
             "equalize",
-            "--device",
+            "--device-under-test",
             "simulated",
             "--bins",
             bad,
@@ -392,7 +392,7 @@ fn bins_are_refused_with_the_range_the_equalizer_takes() {
     assert_ok(&run(&[
         "calibrate",
         "equalize",
-        "--device",
+        "--device-under-test",
         "simulated",
         "--bins",
         "1048576",

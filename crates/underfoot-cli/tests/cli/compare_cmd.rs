@@ -21,9 +21,9 @@ fn compare_prints_table_one_for_the_papers_five_materials() {
         .collect();
     let mut args = vec![
         "compare",
-        "--json",
+        "--json-out",
         json.to_str().unwrap(),
-        "--plot",
+        "--plot-dir",
         plots.to_str().unwrap(),
     ];
     args.extend(pairs.iter().map(String::as_str));
@@ -110,9 +110,9 @@ fn fit_and_compare_agree_on_the_same_recordings() {
     files.sort();
     let mut args = vec![
         "fit".to_string(),
-        "--material".into(),
+        "--name".into(),
         "gravel".into(),
-        "--out".into(),
+        "--library".into(),
         lib.display().to_string(),
         "--report".into(),
         report.display().to_string(),
@@ -122,7 +122,7 @@ fn fit_and_compare_agree_on_the_same_recordings() {
     let fitted = run(&args);
     assert_ok(&fitted);
     let pair = format!("gravel={}", folder.display());
-    let compared = run(&["compare", "--json", s(&json), &pair]);
+    let compared = run(&["compare", "--json-out", s(&json), &pair]);
     assert_ok(&compared);
 
     let read = |p: &Path| -> serde_json::Value {

@@ -176,7 +176,7 @@ fn no_output_replaces_a_device_a_fifo_or_a_link_to_a_device() {
                 "--output",
                 &wav,
             ],
-            vec!["fit", "--material", "x", "--out", t, s(&rec)],
+            vec!["fit", "--name", "x", "--library", t, s(&rec)],
             vec![
                 "export",
                 "--library",
@@ -186,7 +186,7 @@ fn no_output_replaces_a_device_a_fifo_or_a_link_to_a_device() {
                 "--materials",
                 "gravel",
             ],
-            vec!["compare", "--json", t, &pair],
+            vec!["compare", "--json-out", t, &pair],
             vec!["calibrate", "sensors", "--readings", s(&rec), "--out", t],
             vec![
                 "eq-table",
@@ -246,13 +246,13 @@ fn no_command_writes_over_a_file_it_reads() {
     let rec = dir.path().join("rec.wav");
     write_recording(&rec, 2);
     let recorded = fs::read(&rec).expect("recording");
-    let o = run(&["fit", "--material", "x", "--out", s(&rec), s(&rec)]);
+    let o = run(&["fit", "--name", "x", "--library", s(&rec), s(&rec)]);
     assert_refused(&o, "which this command reads");
     let o = run(&[
         "fit",
-        "--material",
+        "--name",
         "x",
-        "--out",
+        "--library",
         s(&lib),
         "--report",
         s(&rec),
@@ -290,7 +290,7 @@ fn fit_writes_through_a_symlink_and_refuses_a_read_only_library() {
     fs::write(&ro, builtin().to_json()).expect("library");
     fs::set_permissions(&ro, fs::Permissions::from_mode(0o444)).expect("chmod");
     let before = fs::read(&ro).expect("read");
-    let o = run(&["fit", "--material", "x", "--out", s(&ro), s(&rec)]);
+    let o = run(&["fit", "--name", "x", "--library", s(&ro), s(&rec)]);
     assert_refused(&o, "read-only");
     assert_eq!(fs::read(&ro).expect("read"), before);
     assert_eq!(
@@ -306,7 +306,7 @@ fn fit_writes_through_a_symlink_and_refuses_a_read_only_library() {
     fs::write(&real, builtin().to_json()).expect("library");
     let link = dir.path().join("link.json");
     std::os::unix::fs::symlink("libs/real.json", &link).expect("symlink");
-    let o = run(&["fit", "--material", "synthetic", "--out", s(&link), s(&rec)]);
+    let o = run(&["fit", "--name", "synthetic", "--library", s(&link), s(&rec)]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
         fs::symlink_metadata(&link).expect("link").is_symlink(),
@@ -336,7 +336,7 @@ fn five_concurrent_fits_into_one_library_all_land() {
             let rec = dir.path().join(format!("{name}.wav"));
             write_recording(&rec, 10 + i as u64);
             Command::new(bin())
-                .args(["fit", "--material", name, "--out", s(&lib), s(&rec)])
+                .args(["fit", "--name", name, "--library", s(&lib), s(&rec)])
                 .stdout(Stdio::piped())
                 .stderr(Stdio::piped())
                 .spawn()
@@ -371,7 +371,7 @@ fn a_killed_live_recording_is_a_valid_wav_on_disk() {
             "gait:steps=60,channels=1",
             "--output",
             &format!("wav:{}", s(&wav)),
-            "--rate",
+            "--audio-rate",
             "8000",
             "--gain-db",
             "-20",
@@ -426,7 +426,7 @@ fn a_failed_live_recording_keeps_the_old_file() {
     // (the ignored SIGXFSZ is inherited through exec).
     let script = format!(
         "trap '' XFSZ; ulimit -f 100; exec '{}' run --material wood --input \
-         gait:steps=20,channels=1 --output 'wav:{}' --rate 8000 --gain-db -20",
+         gait:steps=20,channels=1 --output 'wav:{}' --audio-rate 8000 --gain-db -20",
         bin().display(),
         wav.display()
     );
@@ -468,7 +468,7 @@ fn render_writes_force_to_its_own_file() {
         s(&out),
         "--force-out",
         s(&force),
-        "--format",
+        "--sample-format",
         "i16",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));

@@ -28,7 +28,7 @@ fn fit_of_missing_or_garbage_recording_fails_and_keeps_library() {
     )
     .expect("write");
     for file in [&missing, &garbage] {
-        let o = run(&["fit", "--material", "sand", "--out", s(&lib), s(file)]);
+        let o = run(&["fit", "--name", "sand", "--library", s(&lib), s(file)]);
         let e = assert_error(&o);
         assert!(
             e.contains(s(file)),
@@ -52,9 +52,9 @@ fn fit_checks_its_arguments_and_out_library_before_reading() {
     fs::write(&broken, "{ not json").expect("write");
     let e = assert_error(&run(&[
         "fit",
-        "--material",
+        "--name",
         "sand",
-        "--out",
+        "--library",
         s(&broken),
         s(&missing),
     ]));
@@ -62,16 +62,19 @@ fn fit_checks_its_arguments_and_out_library_before_reading() {
     assert_eq!(fs::read_to_string(&broken).expect("read"), "{ not json");
 
     let bad_runs: [(&[&str], &str); 4] = [
-        (&["--material", "a b"], "--material"),
-        (&["--material", "sand", "--plot", "p.jpg"], ".svg or .png"),
-        (&["--material", "sand", "--rate", "1000"], "does not fit"),
+        (&["--name", "a b"], "--name"),
+        (&["--name", "sand", "--plot", "p.jpg"], ".svg or .png"),
         (
-            &["--material", "sand", "--report", "/nonexistent/dir/r.json"],
+            &["--name", "sand", "--analysis-rate", "1000"],
+            "does not fit",
+        ),
+        (
+            &["--name", "sand", "--report", "/nonexistent/dir/r.json"],
             "does not exist",
         ),
     ];
     for (extra, expected) in bad_runs {
-        let mut args = vec!["fit", "--out", s(&lib)];
+        let mut args = vec!["fit", "--library", s(&lib)];
         args.extend_from_slice(extra);
         args.push(s(&missing));
         let e = assert_error(&run(&args));
@@ -86,7 +89,7 @@ fn fit_checks_its_arguments_and_out_library_before_reading() {
         &["--order", "4", "--max-order", "8"][..],
         &["--csv-column", "z"][..],
     ] {
-        let mut args = vec!["fit", "--material", "sand", "--out", s(&lib)];
+        let mut args = vec!["fit", "--name", "sand", "--library", s(&lib)];
         args.extend_from_slice(extra);
         args.push(s(&missing));
         assert_eq!(run(&args).status.code(), Some(2), "{extra:?}");
@@ -197,7 +200,7 @@ fn fit_of_each_bad_recording_kind_fails_clearly_and_keeps_library() {
     ];
     for (name, extra, fault) in cases {
         let file = p(name);
-        let mut args = vec!["fit", "--material", "sand", "--out", s(&lib)];
+        let mut args = vec!["fit", "--name", "sand", "--library", s(&lib)];
         args.extend_from_slice(extra);
         args.push(s(&file));
         let e = assert_error(&run(&args));
@@ -221,11 +224,11 @@ fn fit_with_band_beyond_rate_fails_and_keeps_library() {
     write_wav_i16(&wav, 8000, &strikes(8000));
     let o = run(&[
         "fit",
-        "--material",
+        "--name",
         "x",
-        "--out",
+        "--library",
         s(&lib),
-        "--rate",
+        "--analysis-rate",
         "1000",
         s(&wav),
     ]);
@@ -237,9 +240,9 @@ fn fit_with_band_beyond_rate_fails_and_keeps_library() {
     // 0.05-0.30000000000000004 Hz does not fit"): what fails is the recording, said so.
     let o = run(&[
         "fit",
-        "--material",
+        "--name",
         "x",
-        "--out",
+        "--library",
         s(&lib),
         "--band",
         "0.1:0.2",
@@ -263,9 +266,9 @@ fn fit_adds_a_material_writes_report_and_plot() {
     let plot = dir.path().join("fit.svg");
     let o = run(&[
         "fit",
-        "--material",
+        "--name",
         "synthetic",
-        "--out",
+        "--library",
         s(&lib),
         "--report",
         s(&report),
@@ -311,9 +314,9 @@ fn fit_adds_a_material_writes_report_and_plot() {
     // Fitting again replaces, keeps one entry.
     assert_ok(&run(&[
         "fit",
-        "--material",
+        "--name",
         "synthetic",
-        "--out",
+        "--library",
         s(&lib),
         "--order",
         "4",
@@ -375,9 +378,9 @@ fn fit_refuses_meaningless_models_and_keeps_library() {
     for (name, extra, expected) in cases {
         let mut args = vec![
             "fit",
-            "--material",
+            "--name",
             "bad",
-            "--out",
+            "--library",
             s(&lib),
             "--report",
             s(&report),
@@ -411,9 +414,9 @@ fn accept_poor_fit_keeps_it_marked() {
     write_wav_i16(&wav, 8000, &strikes(8000));
     let o = run(&[
         "fit",
-        "--material",
+        "--name",
         "rough",
-        "--out",
+        "--library",
         s(&lib),
         "--order",
         "1",
@@ -475,7 +478,7 @@ fn fit_report_gives_leave_one_out_on_gravel() {
                 .into_owned()
         })
         .collect();
-    let mut args = vec!["fit", "--material", "gravel", "--out", s(&lib)];
+    let mut args = vec!["fit", "--name", "gravel", "--library", s(&lib)];
     args.extend(["--report", s(&report)]);
     args.extend(gravel.iter().map(String::as_str));
     let o = run(&args);
@@ -533,9 +536,9 @@ fn fit_report_gives_leave_one_out_on_gravel() {
 
     let o = run(&[
         "fit",
-        "--material",
+        "--name",
         "gravel1",
-        "--out",
+        "--library",
         s(&lib),
         "--report",
         s(&report),
@@ -582,7 +585,7 @@ fn fit_names_the_recording_that_does_not_belong() {
         ("gravel", files("gravel"), None),
         ("snow", files("snow"), None),
     ] {
-        let mut args = vec!["fit", "--material", name, "--out", s(&out)];
+        let mut args = vec!["fit", "--name", name, "--library", s(&out)];
         args.extend(set.iter().map(String::as_str));
         let o = run(&args);
         assert_ok(&o);

@@ -2,7 +2,7 @@
 
 use std::fs;
 
-use crate::common::{assert_error, assert_ok, read_wav, run, s, stdout};
+use crate::common::{assert_error, assert_ok, read_wav, run, s, stderr, stdout};
 
 #[test]
 #[ignore = "slow tier: long renders"]
@@ -281,4 +281,31 @@ fn the_limiter_warning_gives_the_gain_that_fits() {
         "{}",
         crate::common::stderr(&o)
     );
+}
+
+/// An old spelling (issue 31's renames) still works for one release, with a warning that
+/// names the new one: `render --rate` is `--audio-rate`.
+#[test]
+fn an_old_flag_spelling_works_with_a_warning_naming_the_new_one() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("old.wav");
+    let o = run(&[
+        "render",
+        "--material",
+        "gravel",
+        "--gait",
+        "steps=2",
+        "--rate",
+        "8000",
+        "--out",
+        s(&out),
+    ]);
+    assert_ok(&o);
+    assert!(
+        stderr(&o).contains("`render --rate` is now `--audio-rate`"),
+        "{}",
+        stderr(&o)
+    );
+    let (spec, _) = read_wav(&out);
+    assert_eq!(spec.sample_rate, 8000);
 }

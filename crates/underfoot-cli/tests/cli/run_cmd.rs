@@ -79,7 +79,7 @@ fn adaptation_is_refused_clearly_where_it_cannot_run() {
     assert_ok(&run(&[
         "calibrate",
         "equalize",
-        "--device",
+        "--device-under-test",
         s(&device),
         "--passes",
         "1",

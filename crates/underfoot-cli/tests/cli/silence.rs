@@ -27,7 +27,7 @@ fn render_in_integer_formats_never_writes_a_code_past_the_ceiling() {
             "steps=2,channels=1",
             "--gain-db",
             "30",
-            "--format",
+            "--sample-format",
             format,
             "--out",
             s(&out),

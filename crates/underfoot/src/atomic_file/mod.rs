@@ -17,7 +17,7 @@
 //! 2. **refuses anything but a regular file**: a directory, a character or block device,
 //!    a FIFO, a socket. A rename would silently turn `/dev/null` into a file holding the
 //!    output; a user who wants standard output says `-`, which only text outputs accept
-//!    ([`OutputFile::check_or_stdout`]: `export --out`, `compare --json`); binary WAV and
+//!    ([`OutputFile::check_or_stdout`]: `export --out`, `compare --json-out`); binary WAV and
 //!    plot outputs need a file;
 //! 3. **refuses a read-only file** (no write permission bit, or the open for writing is
 //!    denied): replacing it because its *folder* is writable would defeat the user's

@@ -61,7 +61,7 @@ pub(super) fn check_kind(given: &Path, target: &Path) -> Result<(), AtomicWriteE
             format!(
                 "it is {what}{shown}; outputs are written to regular files only and never \
                  replace a device, FIFO, socket or directory (for standard output give `-` \
-                 where the option accepts it: export --out, compare --json)"
+                 where the option accepts it: export --out, compare --json-out)"
             ),
         ));
     }

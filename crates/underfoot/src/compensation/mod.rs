@@ -23,7 +23,7 @@
 //!   before the limiter.
 //!
 //! The simulated tile and user that stand in for the hardware and a person, in the tests
-//! and on the command line (`--device simulated`), are in [`crate::sim`].
+//! and on the command line (`--device-under-test simulated`), are in [`crate::sim`].
 //!
 //! # Example
 //!

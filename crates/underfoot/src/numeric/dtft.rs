@@ -34,12 +34,12 @@ const LANES: usize = 16;
 ///
 /// Within a block of `$L$` samples starting at `$b$`, the real recursion
 /// `$s_n = x_{b+n} + 2\cos\omega\, s_{n-1} - s_{n-2}$` costs one multiply-add per sample
-/// and frequency (a quarter of a rotating phasor's work), [`LANES`] frequencies together
+/// and frequency (a quarter of a rotating phasor's work), 16 frequencies together
 /// in registers; it ends with
 /// `$y = s_{L-1} - e^{-j\omega} s_{L-2} = \sum_{n<L} x_{b+n} e^{j\omega(L-1-n)}$`, so the
 /// block adds `$e^{-j\omega(b+L-1)}\, y$` to the sum, its phase computed afresh from
 /// `$\omega(b+L-1)$`. Goertzel's round-off grows as the square of the length near
-/// `$\omega = 0$`; restarting every [`BLOCK`] samples bounds it, at one sine and cosine
+/// `$\omega = 0$`; restarting every 1024 samples bounds it, at one sine and cosine
 /// per block and frequency. The same sums as one [`dtft`] per frequency, to round-off.
 #[must_use]
 pub fn dtft_many(x: &[f64], omegas: &[f64]) -> Vec<Complex64> {

@@ -1,7 +1,7 @@
 //! Simulators: stand-ins for the hardware and the people the production paths serve.
 //!
 //! Nothing here is a production path. These exist so that tests, examples and the
-//! command line's `--device simulated` can exercise the real code end to end without a
+//! command line's `--device-under-test simulated` can exercise the real code end to end without a
 //! tile, a prosthesis, a sound card or a person: a device with a known response, a user
 //! with a known limb, a board speaking the sensor protocol, and the prosthetic interface's board.
 //!

@@ -1,5 +1,5 @@
 //! Where sweeps are played and recorded: the simulated tile (with a simulated user on it,
-//! `--load`), a replayed measurement, or a sound card (`--device audio`, with the
+//! `--load`), a replayed measurement, or a sound card (`--device-under-test audio`, with the
 //! `audio` feature).
 
 use std::path::{Path, PathBuf};
@@ -49,7 +49,7 @@ pub(super) fn parse_device(s: &str) -> Result<DeviceArg, SpecError> {
             input: None,
         }),
         "" => Err(SpecError::Invalid {
-            what: "--device",
+            what: "--device-under-test",
             input: String::new(),
             reason: "expected `simulated`, `audio[:DEVICE]` or a measured-response file".into(),
         }),
@@ -63,33 +63,33 @@ pub(super) fn parse_device(s: &str) -> Result<DeviceArg, SpecError> {
     }
 }
 
-/// The sound card's settings for `--device audio`.
+/// The sound card's settings for `--device-under-test audio`.
 #[derive(Debug, Clone, Args)]
 pub struct AudioDeviceArgs {
-    /// `--device audio`: the output that drives the actuator (an id such as `hw:1`, a
+    /// `--device-under-test audio`: the output that drives the actuator (an id such as `hw:1`, a
     /// description or part of either; `run --list-devices` lists them); the host's
     /// default without it.
     #[arg(long = "output-device", value_name = "DEVICE")]
     pub output_device: Option<String>,
-    /// `--device audio`: the input the accelerometer is on; the host's default without it.
+    /// `--device-under-test audio`: the input the accelerometer is on; the host's default without it.
     #[arg(long = "input-device", value_name = "DEVICE")]
     pub input_device: Option<String>,
-    /// `--device audio`: audio host: default, alsa or jack.
+    /// `--device-under-test audio`: audio host: default, alsa or jack.
     #[arg(long, default_value = "default", value_name = "HOST")]
     pub host: String,
-    /// `--device audio`: the output channel that drives the actuator, from 1.
+    /// `--device-under-test audio`: the output channel that drives the actuator, from 1.
     #[arg(long = "out-channel", default_value = "1", value_name = "N", value_parser = parse_out_channel)]
     pub out_channel: u16,
-    /// `--device audio`: the input channel the accelerometer is on, from 1.
+    /// `--device-under-test audio`: the input channel the accelerometer is on, from 1.
     #[arg(long = "in-channel", default_value = "1", value_name = "N", value_parser = parse_in_channel)]
     pub in_channel: u16,
-    /// `--device audio`: channels of the output stream (the others play silence).
+    /// `--device-under-test audio`: channels of the output stream (the others play silence).
     #[arg(long = "output-channels", default_value_t = 2, value_name = "N")]
     pub output_channels: u16,
-    /// `--device audio`: channels of the input stream (only `--in-channel` is recorded).
+    /// `--device-under-test audio`: channels of the input stream (only `--in-channel` is recorded).
     #[arg(long = "input-channels", default_value_t = 2, value_name = "N")]
     pub input_channels: u16,
-    /// `--device audio`: frames per device buffer; the host's default without it. A
+    /// `--device-under-test audio`: frames per device buffer; the host's default without it. A
     /// measurement needs no low latency: large buffers (1024) keep it clear of xruns.
     #[arg(long, value_name = "FRAMES")]
     pub buffer: Option<u32>,
@@ -135,7 +135,7 @@ impl SweepSettings {
                 let file: ResponseFile = document::load(path)?;
                 anyhow::ensure!(
                     file.rate == rate,
-                    "{} was measured at {} Hz; use --rate {}",
+                    "{} was measured at {} Hz; use --audio-rate {}",
                     path.display(),
                     file.rate.0,
                     file.rate.0
@@ -208,7 +208,7 @@ fn audio_loop(
     _rate: SampleRate,
 ) -> anyhow::Result<(Box<dyn Device>, String)> {
     anyhow::bail!(
-        "--device audio (output {:?}, input {:?}, host {}): this build has no audio support; \
+        "--device-under-test audio (output {:?}, input {:?}, host {}): this build has no audio support; \
          rebuild with `--features audio` (needs the libasound2-dev package) or `--features jack`",
         output.as_deref().unwrap_or("default"),
         input.as_deref().unwrap_or("default"),

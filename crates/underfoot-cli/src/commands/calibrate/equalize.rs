@@ -63,7 +63,7 @@ pub struct EqualizeArgs {
     /// The device: `simulated`, a measured-response file (from `calibrate sweep`), whose
     /// magnitude is replayed for the passes after the first, or `audio[:DEVICE]` (a sound
     /// card, measured at every pass; see `--output-device`, `--input-device`, `--host`).
-    #[arg(long, value_name = "DEVICE", value_parser = parse_device)]
+    #[arg(long = "device-under-test", visible_alias = "dut", value_name = "DEVICE", value_parser = parse_device)]
     pub device: DeviceArg,
     /// Sweeps (passes); the first is through flat weights.
     #[arg(long, default_value_t = 3, value_name = "N", value_parser = parse_passes)]

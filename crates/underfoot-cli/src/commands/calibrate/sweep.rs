@@ -39,20 +39,20 @@ pub struct SweepSettings {
     /// The band measured, in Hz (the skin's vibrotactile range by default).
     #[arg(long, default_value = "40:1024", value_name = "LO:HI")]
     pub band: Band,
-    /// Sample rate.
-    #[arg(long, default_value_t = 48_000, value_name = "HZ", value_parser = parse_sweep_rate)]
+    /// Audio sample rate, in Hz.
+    #[arg(long = "audio-rate", default_value_t = 48_000, value_name = "HZ", value_parser = parse_sweep_rate)]
     pub rate: u32,
     /// Sweeps averaged per measurement (1 to 100).
     #[arg(long, default_value_t = 3, value_name = "N", value_parser = parse_repeats)]
     pub repeats: usize,
     /// Duration of one sweep, in seconds (at most 60).
-    #[arg(long, default_value_t = 2.0, value_name = "S", value_parser = parse_sweep_duration)]
+    #[arg(long = "sweep-duration", default_value_t = 2.0, value_name = "S", value_parser = parse_sweep_duration)]
     pub duration: f64,
     /// Simulated device only: accelerometer noise relative to the signal, in dB.
     #[arg(long = "noise-db", default_value_t = -40.0, value_name = "DB", allow_hyphen_values = true)]
     pub noise_db: f64,
     /// Simulated device only: seed of the noise.
-    #[arg(long, default_value_t = 0x5EED, value_name = "N")]
+    #[arg(long = "noise-seed", default_value_t = 0x5EED, value_name = "N")]
     pub seed: u64,
     /// Simulated device only: a user standing on it, `table1` (Table 1's mean user),
     /// `B3K3,K2M2,B2M2`, or a limb file.
@@ -66,7 +66,7 @@ impl SweepSettings {
     pub(super) fn sweep(&self) -> anyhow::Result<Sweep> {
         anyhow::ensure!(
             (8_000..=384_000).contains(&self.rate),
-            "--rate {} Hz: need 8000 to 384000",
+            "--audio-rate {} Hz: need 8000 to 384000",
             self.rate
         );
         let cfg = SweepConfig {
@@ -82,7 +82,7 @@ impl SweepSettings {
 impl SweepSettings {
     /// Every file a sweep command reads with these settings and `device`: the limb file of
     /// `--load` and a replayed measurement. One list for every command, so that none can
-    /// name one of them as its output (`--device x.json --out x.json` replaced the
+    /// name one of them as its output (`--device-under-test x.json --out x.json` replaced the
     /// measurement it was replaying).
     pub(super) fn input_files<'a>(&'a self, device: &'a DeviceArg) -> Vec<&'a Path> {
         let load = match &self.load {
@@ -98,7 +98,7 @@ impl SweepSettings {
 pub struct SweepArgs {
     /// The device: `simulated`, a measured-response file to replay, or `audio[:DEVICE]`
     /// (a sound card; see `--output-device`, `--input-device`, `--host`).
-    #[arg(long, default_value = "simulated", value_name = "DEVICE", value_parser = parse_device)]
+    #[arg(long = "device-under-test", visible_alias = "dut", default_value = "simulated", value_name = "DEVICE", value_parser = parse_device)]
     pub device: DeviceArg,
     /// Measure through this equalizer (a `calibrate equalize` file).
     #[arg(long, value_name = "FILE")]
@@ -128,7 +128,7 @@ pub(super) fn run(args: &SweepArgs) -> anyhow::Result<()> {
                 .with_context(|| format!("preparing the equalizer of {}", path.display()))?;
             anyhow::ensure!(
                 filter.rate().0 == s.rate,
-                "{} is for {} Hz; use --rate {}",
+                "{} is for {} Hz; use --audio-rate {}",
                 path.display(),
                 filter.rate().0,
                 filter.rate().0

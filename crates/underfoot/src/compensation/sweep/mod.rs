@@ -19,7 +19,7 @@
 //! | [`response`](mod@response) | [`FrequencyResponse`] and its deviation from flat |
 //! | [`device`] | the [`Device`] trait, [`measure`], and [`MeasuredDevice`], a replay of a measured response |
 //!
-//! The simulated tile the tests and `--device simulated` measure is
+//! The simulated tile the tests and `--device-under-test simulated` measure is
 //! [`crate::sim::SimulatedTile`].
 
 pub mod deconvolve;
