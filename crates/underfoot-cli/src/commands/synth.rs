@@ -251,6 +251,19 @@ impl SynthArgs {
                     path.display()
                 );
                 let (model, _) = user.model()?;
+                // One user is no table to interpolate in: everyone gets that user's curve.
+                if let [only] = users.entries.as_slice()
+                    && only.params != model.params
+                {
+                    eprintln!(
+                        "underfoot: warning: {} holds one user ({}): it cannot interpolate, \
+                         so this user gets {}'s curve; add users (eq-table add) to \
+                         interpolate between them",
+                        table.display(),
+                        only.name,
+                        only.name
+                    );
+                }
                 weights.gains_db = users
                     .interpolate(&model.params)
                     .with_context(|| format!("looking the user up in {}", table.display()))?;

@@ -2,7 +2,7 @@
 
 use std::fs;
 
-use crate::common::{assert_error, assert_ok, run, s, stdout};
+use crate::common::{assert_error, assert_ok, run, s, stderr, stdout};
 
 /// The README's compensation session on the simulated tile: measure, equalize, fit a
 /// user, tabulate users, and render through the compensation.
@@ -112,9 +112,33 @@ fn a_compensation_session_on_the_simulated_tile() {
             s(&eq),
         ];
         args.extend(extra);
-        assert_ok(&run(&args));
+        let o = run(&args);
+        assert_ok(&o);
         assert!(fs::metadata(&wav).unwrap().len() > 1000);
+        assert!(!stderr(&o).contains("holds one user"), "{}", stderr(&o));
     }
+    // A table of one user cannot interpolate: said, not silently Anna's curve for all.
+    let o = run(&[
+        "render",
+        "--material",
+        "snow",
+        "--gait",
+        "steps=2",
+        "--out",
+        s(&p("one.wav")),
+        "--eq",
+        s(&eq),
+        "--eq-table",
+        s(&copy),
+        "--user",
+        "0.0045,4e6,1800",
+    ]);
+    assert_ok(&o);
+    assert!(
+        stderr(&o).contains("holds one user (anna): it cannot interpolate"),
+        "{}",
+        stderr(&o)
+    );
 
     // Another command's file, a missing file and a newer version are clean errors, and a
     // failed run leaves the files alone.
