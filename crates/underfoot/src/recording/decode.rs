@@ -78,25 +78,42 @@ fn wav_header_fault(bytes: &[u8]) -> Option<String> {
 }
 
 /// [`wav_header_fault`] for a RIFF/WAVE header at the start of `bytes`.
+///
+/// The chunks are walked the ways a decoder may walk them: by each chunk's declared size
+/// (padded to even), and, after a `fmt ` chunk with an extension, by the extension's own
+/// size (`cbSize`), which symphonia follows even where it disagrees with the chunk's size
+/// (found by libFuzzer). Every chunk start reachable either way is looked at once.
 fn riff_fault(bytes: &[u8]) -> Option<String> {
-    let mut at = 12usize;
-    while let Some(header) = bytes.get(at..at.checked_add(8)?) {
-        let size = u32::from_le_bytes(header[4..8].try_into().ok()?) as usize;
+    let mut pending = vec![12usize];
+    let mut seen = std::collections::HashSet::new();
+    while let Some(at) = pending.pop() {
+        if !seen.insert(at) {
+            continue;
+        }
+        let Some(header) = at.checked_add(8).and_then(|end| bytes.get(at..end)) else {
+            continue;
+        };
+        let size = u32::from_le_bytes([header[4], header[5], header[6], header[7]]) as usize;
+        let body = at + 8;
         if &header[..4] == b"fmt " {
-            let channels = u16::from_le_bytes(bytes.get(at + 10..at + 12)?.try_into().ok()?);
-            if channels == 0 || channels > MAX_WAV_CHANNELS {
-                return Some(format!(
-                    "the WAV header declares {channels} channels (1 to {MAX_WAV_CHANNELS})"
-                ));
+            if let Some(c) = bytes.get(body + 2..body + 4) {
+                let channels = u16::from_le_bytes([c[0], c[1]]);
+                if channels == 0 || channels > MAX_WAV_CHANNELS {
+                    return Some(format!(
+                        "the WAV header declares {channels} channels (1 to {MAX_WAV_CHANNELS})"
+                    ));
+                }
             }
             // Not the end: the decoder reads every `fmt ` chunk, and a later one is the
             // format it keeps (found by libFuzzer).
+            if let Some(c) = bytes.get(body + 16..body + 18) {
+                let extension = usize::from(u16::from_le_bytes([c[0], c[1]]));
+                pending.push(body + 18 + extension);
+            }
         }
-        // Chunks are padded to an even length.
-        at = at
-            .checked_add(8)?
-            .checked_add(size)?
-            .checked_add(size & 1)?;
+        if let Some(next) = body.checked_add(size).and_then(|n| n.checked_add(size & 1)) {
+            pending.push(next);
+        }
     }
     None
 }
