@@ -26,7 +26,7 @@ impl OutputFile {
             let held = file.metadata().map_err(io(&path, "locking"))?;
             match fs::metadata(&path) {
                 Ok(now) if identity(&now) == identity(&held) => {
-                    let edited = super::reads::begin_edit(target);
+                    let edited = crate::limits::reads::begin_edit(target);
                     return Ok(EditLock { file, path, edited });
                 }
                 _ => {}
@@ -41,7 +41,7 @@ pub struct EditLock {
     file: File,
     path: PathBuf,
     /// The file being edited, which its edit may read and replace.
-    edited: Option<super::reads::Id>,
+    edited: Option<crate::limits::reads::FileId>,
 }
 
 impl Drop for EditLock {
@@ -54,7 +54,7 @@ impl Drop for EditLock {
         }
         let _ = fs4::FileExt::unlock(&self.file);
         if let Some(id) = self.edited {
-            super::reads::end_edit(id);
+            crate::limits::reads::end_edit(id);
         }
     }
 }

@@ -1297,7 +1297,7 @@ impl SessionRecord {
         };
         let file = fs::File::open(path).map_err(|e| bad(hound::Error::IoError(e)))?;
         if let Ok(meta) = file.metadata() {
-            crate::atomic_file::note_read(&meta);
+            crate::limits::reads::note_read(&meta);
         }
         let mut reader = hound::WavReader::new(std::io::BufReader::new(file)).map_err(bad)?;
         let spec = reader.spec();

@@ -15,9 +15,14 @@
 //! A file is checked twice: its size from its metadata (a regular file too large is
 //! refused before one byte is read), and the bytes actually read (a device or pipe, whose
 //! metadata says nothing, is cut off at the cap plus one byte and refused).
+//!
+//! The reader also notes which files it read ([`reads`]), in a program that asks for it,
+//! so that the output policy ([`crate::atomic_file`]) can refuse to replace them.
 
 use std::io::Read;
 use std::path::Path;
+
+pub mod reads;
 
 use crate::units::Seconds;
 
@@ -64,7 +69,7 @@ pub fn read_capped(path: &Path, cap: u64) -> std::io::Result<Vec<u8>> {
     let meta = file.metadata()?;
     // Noted before the bytes are read: an output must not replace a file the command
     // started to read, even one it then refused.
-    crate::atomic_file::note_read(&meta);
+    reads::note_read(&meta);
     let declared = meta.is_file().then_some(meta.len());
     if declared.is_some_and(|n| n > cap) {
         return Err(too_large());
