@@ -70,11 +70,12 @@ fn main() -> ExitCode {
     // No command replaces a file it has read, whether or not it lists it as an input
     // (underfoot::atomic_file, *Inputs*).
     underfoot::atomic_file::refuse_outputs_over_reads();
-    let (args, renamed) = vocabulary::modernise(std::env::args_os().collect());
+    let cli = command_line();
+    let (args, renamed) = vocabulary::modernise(&cli, std::env::args_os().collect());
     for warning in renamed {
         eprintln!("{warning}");
     }
-    let parsed = command_line()
+    let parsed = cli
         .try_get_matches_from(args)
         .and_then(|m| Cli::from_arg_matches(&m));
     let cli = match parsed {

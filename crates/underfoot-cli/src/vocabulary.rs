@@ -88,31 +88,27 @@ pub const RENAMED: &[Renamed] = &[
     },
 ];
 
-/// The subcommand path of `args` (after the program's name): `fit`, `calibrate sweep`.
-fn command_of(args: &[OsString]) -> String {
-    let words: Vec<&str> = args
-        .iter()
-        .skip(1)
-        .take(2)
-        .map_while(|a| a.to_str().filter(|w| !w.starts_with('-')))
-        .collect();
-    match words.as_slice() {
-        [
-            group @ ("calibrate" | "library" | "eq-table" | "session"),
-            sub,
-            ..,
-        ] => {
-            format!("{group} {sub}")
-        }
-        [one, ..] => (*one).to_owned(),
-        [] => String::new(),
+/// The subcommand path of `args` (after the program's name) in `cli`: `fit`,
+/// `calibrate sweep` (a word names a subcommand of the one before it for as long as
+/// `cli` has one of that name).
+fn command_of(cli: &clap::Command, args: &[OsString]) -> String {
+    let mut path: Vec<&str> = Vec::new();
+    let mut at = cli;
+    for word in args.iter().skip(1).map_while(|a| a.to_str()) {
+        let Some(sub) = at.find_subcommand(word) else {
+            break;
+        };
+        path.push(word);
+        at = sub;
     }
+    path.join(" ")
 }
 
-/// `args` with every old spelling of its command's renamed flags replaced by the new
-/// one (`--old` and `--old=VALUE`; nothing after `--`), and a warning for each.
-pub fn modernise(mut args: Vec<OsString>) -> (Vec<OsString>, Vec<String>) {
-    let command = command_of(&args);
+/// `args` with every old spelling of its command's renamed flags (the command found in
+/// `cli`) replaced by the new one (`--old` and `--old=VALUE`; nothing after `--`), and a
+/// warning for each.
+pub fn modernise(cli: &clap::Command, mut args: Vec<OsString>) -> (Vec<OsString>, Vec<String>) {
+    let command = command_of(cli, &args);
     let mut warnings = Vec::new();
     for arg in args.iter_mut().skip(1) {
         let Some(text) = arg.to_str() else { continue };
@@ -157,14 +153,17 @@ mod tests {
 
     #[test]
     fn old_spellings_reach_their_new_flag_in_their_command_only() {
-        let (args, warnings) = modernise(os(&[
-            "underfoot",
-            "fit",
-            "--material",
-            "m",
-            "--rate=4000",
-            "x.wav",
-        ]));
+        let (args, warnings) = modernise(
+            &crate::command_line(),
+            os(&[
+                "underfoot",
+                "fit",
+                "--material",
+                "m",
+                "--rate=4000",
+                "x.wav",
+            ]),
+        );
         assert_eq!(
             args,
             os(&[
@@ -181,14 +180,17 @@ mod tests {
             warnings[1].contains("`fit --rate` is now `--analysis-rate`"),
             "{warnings:?}"
         );
-        let (args, _) = modernise(os(&[
-            "underfoot",
-            "render",
-            "--rate",
-            "44100",
-            "--material",
-            "sand",
-        ]));
+        let (args, _) = modernise(
+            &crate::command_line(),
+            os(&[
+                "underfoot",
+                "render",
+                "--rate",
+                "44100",
+                "--material",
+                "sand",
+            ]),
+        );
         assert_eq!(
             args,
             os(&[
@@ -200,23 +202,16 @@ mod tests {
                 "sand"
             ])
         );
-        let (args, _) = modernise(os(&[
-            "underfoot",
-            "calibrate",
-            "sweep",
-            "--device",
-            "simulated",
-        ]));
+        let (args, _) = modernise(
+            &crate::command_line(),
+            os(&["underfoot", "calibrate", "sweep", "--device", "simulated"]),
+        );
         assert_eq!(args[3], "--device-under-test");
         // Nothing after `--`, and nothing of another command.
-        let (args, warnings) = modernise(os(&[
-            "underfoot",
-            "export",
-            "--format",
-            "c",
-            "--",
-            "--rate",
-        ]));
+        let (args, warnings) = modernise(
+            &crate::command_line(),
+            os(&["underfoot", "export", "--format", "c", "--", "--rate"]),
+        );
         assert_eq!(
             args,
             os(&["underfoot", "export", "--format", "c", "--", "--rate"])

@@ -41,7 +41,7 @@
 //! user's `load` then `save` of one file is theirs to decide), the policy also knows
 //! every file the process has read: the crate reads files through one
 //! function, [`crate::limits::read_capped`] (libraries, documents, tracks, recordings),
-//! which notes each regular file's device, inode and change time ([`note_read`]; the
+//! which notes each regular file's device, inode and change time ([`note_read`](crate::limits::reads::note_read); the
 //! streaming readers call it too), and [`OutputFile::persist`], just before the rename
 //! that would replace it, refuses a target so noted (the temporary file is removed, the
 //! target kept). At the rename it holds whatever the order of reads and checks: an
@@ -95,7 +95,6 @@ use std::sync::atomic::{AtomicU64, Ordering};
 mod lock;
 mod policy;
 mod reads;
-pub use crate::limits::reads::note_read;
 pub use reads::refuse_outputs_over_reads;
 mod stale;
 pub use stale::process_is_gone;

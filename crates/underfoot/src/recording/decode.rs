@@ -111,6 +111,7 @@ fn riff_fault(bytes: &[u8]) -> Option<String> {
                 pending.push(body + 18 + extension);
             }
         }
+        // Chunks are padded to an even length.
         if let Some(next) = body.checked_add(size).and_then(|n| n.checked_add(size & 1)) {
             pending.push(next);
         }

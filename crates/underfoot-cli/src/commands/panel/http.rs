@@ -515,14 +515,7 @@ async fn start_session(State(shared): State<Arc<Shared>>, body: Bytes) -> ApiRes
             request.output.as_deref(),
             request.library.as_deref(),
         )
-        .map_err(|(code, why)| {
-            let code = if code == 400 {
-                StatusCode::BAD_REQUEST
-            } else {
-                StatusCode::CONFLICT
-            };
-            error(code, why)
-        })?;
+        .map_err(|(code, why)| error(code, why))?;
     Ok(json_response(json!({ "starting": true }).to_string()))
 }
 

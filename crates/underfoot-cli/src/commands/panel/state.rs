@@ -10,6 +10,7 @@ use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, MutexGuard};
 
+use axum::http::StatusCode;
 use serde::Serialize;
 use serde_json::json;
 use tokio::sync::watch;
@@ -17,13 +18,11 @@ use underfoot::engine::{ChannelLevels, MaterialBank};
 use underfoot::live::EndReason;
 use underfoot::live::{Remote, RunningSession, Status, Summary};
 use underfoot::material::MaterialModel;
-
-use crate::commands::run::{SessionChoice, SessionSettings};
 use underfoot::synthesis::{PreparedMaterial, SynthModel, VoiceConfig};
 use underfoot::units::{Newtons, SampleRate};
 
 use super::fitting::{Jobs, Uploads};
-use crate::commands::run::Observer;
+use crate::commands::run::{Observer, SessionChoice, SessionSettings};
 use crate::commands::synth::Setup;
 use crate::report::{FitReportEntry, LeaveOneOutReport};
 
@@ -389,20 +388,20 @@ impl Shared {
     /// output and library (texts as the flags take them; `None` keeps the last one).
     ///
     /// # Errors
-    /// Why not: the session is running or starting (409), or the choice is not one the
-    /// panel takes (400, with why).
+    /// Why not, and the HTTP status that says it: the session is running or starting
+    /// (409), or the choice is not one the panel takes (400).
     pub fn request_restart(
         &self,
         input: Option<&str>,
         output: Option<&str>,
         library: Option<&str>,
-    ) -> Result<(), (u16, String)> {
+    ) -> Result<(), (StatusCode, String)> {
         let mut view = self.session();
         match view.phase {
             Phase::Ended(_) | Phase::Failed(_) => {
                 let choice =
                     SessionChoice::parse(input, output, library, &view.settings, !self.remote)
-                        .map_err(|why| (400, why))?;
+                        .map_err(|why| (StatusCode::BAD_REQUEST, why))?;
                 *self
                     .restart
                     .lock()
@@ -412,8 +411,11 @@ impl Shared {
                 self.publish(&view);
                 Ok(())
             }
-            Phase::Starting => Err((409, "the session is starting".into())),
-            Phase::Running => Err((409, "the session is running: STOP it first".into())),
+            Phase::Starting => Err((StatusCode::CONFLICT, "the session is starting".into())),
+            Phase::Running => Err((
+                StatusCode::CONFLICT,
+                "the session is running: STOP it first".into(),
+            )),
         }
     }
 

@@ -54,7 +54,7 @@ const view = {
   elapsed: 0,          // the session's time, from its last status
   notes: [],           // markers put into the record from this page: session times
   recording: null,     // what the trial bar last showed
-  choosing: false,     // the session form is open for the next session's choice
+  choosing: false,     // the session form is open (and filled) for the next session's choice
   offers: null,        // /api/session/options, once asked
 
 };
@@ -327,23 +327,18 @@ $("#next-trial").addEventListener("click", async () => {
 // ended (filled from the last session then, and left alone while the person types).
 function setSettings(s) {
   const open = s.state === "ended" || s.state === "failed";
-  const fields = { input: $("#set-input"), output: $("#set-output"), library: $("#set-library") };
-  if (open && !view.choosing) {
-    view.choosing = true;
-    loadOffers();
-  }
-  if (!open) view.choosing = false;
-  if (open && fields.input.dataset.filled) return;
+  // Filled once as the form opens; from then on the fields are the person's.
+  if (open && view.choosing) return;
+  view.choosing = open;
+  if (open) loadOffers();
   const set = s.settings;
-  fields.input.value = set.interface ? `(the interface ${set.interface})` : set.input;
-  fields.output.value = set.output;
-  fields.library.value = set.library || "";
-  fields.input.disabled = !open || Boolean(set.interface);
-  fields.output.disabled = !open;
-  fields.library.disabled = !open || (view.offers !== null && !view.offers.files_allowed);
-  for (const f of Object.values(fields)) {
-    if (open) f.dataset.filled = "1"; else delete f.dataset.filled;
-  }
+  const input = $("#set-input"), output = $("#set-output"), library = $("#set-library");
+  input.value = set.interface ? `(the interface ${set.interface})` : set.input;
+  output.value = set.output;
+  library.value = set.library || "";
+  input.disabled = !open || Boolean(set.interface);
+  output.disabled = !open;
+  library.disabled = !open || (view.offers !== null && !view.offers.files_allowed);
 }
 
 async function loadOffers() {
