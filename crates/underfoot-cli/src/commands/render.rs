@@ -149,7 +149,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         (None, None) => unreachable!("clap requires one input"),
     };
     let channels = track.channel_count();
-    let setup = args.synth.setup(channels)?;
+    let setup = args.synth.setup_playing(channels, Some(&args.material))?;
     let slots = setup.slots(&args.material, channels)?;
     let rate = setup.config.rate;
     let events = track_events(&track, rate);

@@ -309,3 +309,63 @@ fn an_old_flag_spelling_works_with_a_warning_naming_the_new_one() {
     let (spec, _) = read_wav(&out);
     assert_eq!(spec.sample_rate, 8000);
 }
+
+#[test]
+fn render_prepares_only_the_materials_it_plays() {
+    // Issue 30 item 6: render prepared every material of the library (30 ms each, a
+    // minute for 2,000) before playing one. A material that cannot be prepared for a
+    // physical render (it has no physical model) shows it: render fails on it only if
+    // it prepares it.
+    let dir = tempfile::tempdir().unwrap();
+    let mut lib = underfoot::material::builtin::builtin().clone();
+    lib.upsert(crate::common::model("no-physical", 3));
+    let path = dir.path().join("lib.json");
+    fs::write(&path, lib.to_json()).unwrap();
+    let out = dir.path().join("gravel.wav");
+    let o = run(&[
+        "render",
+        "--library",
+        s(&path),
+        "--material",
+        "gravel",
+        "--model",
+        "physical",
+        "--gait",
+        "steps=2",
+        "--out",
+        s(&out),
+    ]);
+    assert_ok(&o);
+    // Asked for, it is refused by name; a name the library lacks is refused with the
+    // library's names.
+    let o = run(&[
+        "render",
+        "--library",
+        s(&path),
+        "--material",
+        "no-physical",
+        "--model",
+        "physical",
+        "--gait",
+        "steps=2",
+        "--out",
+        s(&out),
+    ]);
+    assert!(assert_error(&o).contains("\"no-physical\" has no physical model"));
+    let o = run(&[
+        "render",
+        "--library",
+        s(&path),
+        "--material",
+        "nope",
+        "--gait",
+        "steps=2",
+        "--out",
+        s(&out),
+    ]);
+    let text = assert_error(&o);
+    assert!(
+        text.contains("no material named \"nope\"") && text.contains("gravel"),
+        "{text}"
+    );
+}

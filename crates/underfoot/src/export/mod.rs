@@ -131,8 +131,6 @@ fn where_text(level: &Option<Decibels>) -> String {
 pub struct ExportConfig {
     /// Largest deviation from the float response allowed over the band (default 0.5 dB).
     pub tolerance: Decibels,
-    /// Log-spaced frequencies over the band the check uses (default 256).
-    pub grid_points: usize,
     /// The smallest fraction of the float filter's pole margin `1 - |p|` a quantised
     /// filter must keep (default 0.5).
     pub margin_fraction: f64,
@@ -158,7 +156,6 @@ impl Default for ExportConfig {
     fn default() -> Self {
         Self {
             tolerance: Decibels(0.5),
-            grid_points: 256,
             margin_fraction: 0.5,
             longest_decay: Seconds(0.5),
             q15: true,

@@ -6,7 +6,7 @@ use crate::material::builtin::builtin;
 use crate::numeric::dtft;
 use crate::signal::fixed::to_q15;
 use crate::signal::{Biquad, Sos};
-use crate::units::{Decibels, SampleRate, Seconds};
+use crate::units::{Band, Decibels, SampleRate, Seconds};
 
 #[test]
 fn every_format_of_every_builtin_passes_and_gain_undoes_the_scaling() {
@@ -106,7 +106,12 @@ fn a_failing_format_is_refused_naming_material_and_frequency() {
 /// filter (the reason the Q15 cascade's output stays 32-bit).
 fn rounded_float_figures(model: &MaterialModel, m: &Exported) -> String {
     let reference = Sos::new(m.sections.clone());
-    let checker = Checker::new(model, &reference, &ExportConfig::default());
+    let checker = Checker::new(
+        model,
+        &reference,
+        &ExportConfig::default(),
+        m.impulse_samples,
+    );
     let mut unit = vec![0.0; m.impulse_samples];
     unit[0] = 1.0;
     reference.filter_in_place(&mut unit);
@@ -119,7 +124,7 @@ fn rounded_float_figures(model: &MaterialModel, m: &Exported) -> String {
                 checker
                     .grid
                     .iter()
-                    .map(|&f| dtft(&ir, checker.rate.omega(f)).norm()),
+                    .map(|&f| dtft(&ir, model.sample_rate.omega(f)).norm()),
             );
             format!("{d:.2}")
         })
@@ -192,6 +197,62 @@ fn cascades_with_poles_at_the_decay_limit_pass_at_every_level() {
 }
 
 #[test]
+fn the_grid_is_the_dft_bins_in_the_band_and_its_spectrum_is_the_dtft() {
+    // An oracle for the check's one FFT per response: at every grid frequency its
+    // magnitude is a naive DTFT's, and the grid is what the module doc says it is.
+    let model = builtin().get("gravel").unwrap();
+    let config = ExportConfig::default();
+    let m = prepare(model, &config).unwrap();
+    let reference = Sos::new(m.sections.clone());
+    let n = m.impulse_samples;
+    let mut checker = Checker::new(model, &reference, &config, n);
+    let (rate, band) = (model.sample_rate, model.band_hz);
+    let spacing = checker.grid[1].0 - checker.grid[0].0;
+    let size = (rate.hz() / spacing).round() as usize;
+    assert!(size.is_power_of_two() && size >= n.max(4096), "{size}");
+    assert!(checker.grid.len() >= 256, "{}", checker.grid.len());
+    assert!(checker.grid[0].0 >= band.lo.0 && checker.grid[0].0 - spacing < band.lo.0);
+    let last = checker.grid.last().unwrap().0;
+    assert!(last <= band.hi.0 && last + spacing > band.hi.0);
+    // A response that is not the reference's, so that the deviation is not zero
+    // everywhere: the reference's own, with a seeded ripple added.
+    let mut ir = vec![0.0; n];
+    ir[0] = 1.0;
+    reference.filter_in_place(&mut ir);
+    let mut state = 12_345u64;
+    for v in &mut ir[..600] {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1);
+        *v += 1e-3 * ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5);
+    }
+    let (fast_db, fast_hz) = checker.impulse_worst(&ir);
+    let (naive_db, naive_hz) = checker.worst(
+        checker
+            .grid
+            .iter()
+            .map(|&f| dtft(&ir, rate.omega(f)).norm()),
+    );
+    assert!(fast_db > 1e-3, "{fast_db}");
+    assert!((fast_db - naive_db).abs() < 1e-9, "{fast_db} vs {naive_db}");
+    assert_eq!(fast_hz, naive_hz);
+    // A response longer than the checker was made for is never passed as checked.
+    ir.push(0.0);
+    assert_eq!(checker.impulse_worst(&ir).0, f64::INFINITY);
+}
+
+#[test]
+fn a_narrow_band_still_gets_its_grid() {
+    let mut model = builtin().get("hard").unwrap().clone();
+    model.band_hz = Band::new(200.0, 202.0);
+    let reference = model.sos().unwrap();
+    let checker = Checker::new(&model, &reference, &ExportConfig::default(), 4096);
+    // 2 Hz at 2 kHz: 256 bins would need 2^18 points; that many are allowed.
+    assert!(checker.grid.len() >= 256, "{}", checker.grid.len());
+    assert!(checker.grid.iter().all(|f| (200.0..=202.0).contains(&f.0)));
+}
+
+#[test]
 fn a_level_that_fails_is_named() {
     // An oracle: the reference's own impulse response passes at every level; one
     // level doubled (+6 dB) must fail, and the error names that level.
@@ -199,7 +260,7 @@ fn a_level_that_fails_is_named() {
     let config = ExportConfig::default();
     let m = prepare(model, &config).unwrap();
     let reference = Sos::new(m.sections.clone());
-    let checker = Checker::new(model, &reference, &config);
+    let mut checker = Checker::new(model, &reference, &config, m.impulse_samples);
     let mut ir = vec![0.0; m.impulse_samples];
     ir[0] = 1.0;
     reference.filter_in_place(&mut ir);

@@ -23,86 +23,9 @@ pub fn dtft(x: &[f64], omega: f64) -> Complex64 {
     sum
 }
 
-/// Samples per block of [`dtft_many`]: Goertzel's round-off grows with the square of the
-/// length it runs over, so it restarts at each block.
-const BLOCK: usize = 1024;
-
-/// Frequencies run together, their recursions' state held in registers.
-const LANES: usize = 16;
-
-/// [`dtft`] at every frequency of `omegas` at once, by Goertzel's recursion in blocks.
-///
-/// Within a block of `$L$` samples starting at `$b$`, the real recursion
-/// `$s_n = x_{b+n} + 2\cos\omega\, s_{n-1} - s_{n-2}$` costs one multiply-add per sample
-/// and frequency (a quarter of a rotating phasor's work), 16 frequencies together
-/// in registers; it ends with
-/// `$y = s_{L-1} - e^{-j\omega} s_{L-2} = \sum_{n<L} x_{b+n} e^{j\omega(L-1-n)}$`, so the
-/// block adds `$e^{-j\omega(b+L-1)}\, y$` to the sum, its phase computed afresh from
-/// `$\omega(b+L-1)$`. Goertzel's round-off grows as the square of the length near
-/// `$\omega = 0$`; restarting every 1024 samples bounds it, at one sine and cosine
-/// per block and frequency. The same sums as one [`dtft`] per frequency, to round-off.
-#[must_use]
-pub fn dtft_many(x: &[f64], omegas: &[f64]) -> Vec<Complex64> {
-    let k = omegas.len();
-    let two_cos: Vec<f64> = omegas.iter().map(|w| 2.0 * w.cos()).collect();
-    let back: Vec<Complex64> = omegas
-        .iter()
-        .map(|w| Complex64::from_polar(1.0, -w))
-        .collect();
-    let mut sum = vec![Complex64::new(0.0, 0.0); k];
-    for (block, chunk) in x.chunks(BLOCK).enumerate() {
-        let last = (block * BLOCK + chunk.len() - 1) as f64;
-        for start in (0..k).step_by(LANES) {
-            let n = LANES.min(k - start);
-            let mut c = [0.0; LANES];
-            c[..n].copy_from_slice(&two_cos[start..start + n]);
-            let (mut s1, mut s2) = ([0.0; LANES], [0.0; LANES]);
-            for &v in chunk {
-                for l in 0..LANES {
-                    let s = v + c[l] * s1[l] - s2[l];
-                    s2[l] = s1[l];
-                    s1[l] = s;
-                }
-            }
-            for l in 0..n {
-                let i = start + l;
-                // y = s1 - e^{-jω} s2, turned back by e^{-jω·last}.
-                let y = s1[l] - back[i] * s2[l];
-                sum[i] += y * Complex64::from_polar(1.0, -omegas[i] * last);
-            }
-        }
-    }
-    sum
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn many_frequencies_at_once_are_each_one_s_dtft() {
-        let x: Vec<f64> = (0..20_000)
-            .map(|n| 0.9997f64.powi(n) * (0.37 * f64::from(n)).sin() + 0.3 * 0.999f64.powi(n))
-            .collect();
-        // From near 0 (Goertzel's worst) to near π, and the edges of the export's bands
-        // (20 Hz and 900 Hz at 48 kHz).
-        let mut omegas: Vec<f64> = (0..37).map(|i| 0.001 + 0.085 * f64::from(i)).collect();
-        omegas.extend([
-            0.0,
-            1e-5,
-            2.0 * std::f64::consts::PI * 20.0 / 48_000.0,
-            0.1178,
-            3.1,
-        ]);
-        for (w, got) in omegas.iter().zip(dtft_many(&x, &omegas)) {
-            let want = dtft(&x, *w);
-            assert!(
-                (got - want).norm() <= 1e-10 * want.norm().max(1.0),
-                "{w}: {got} vs {want}"
-            );
-        }
-        assert!(dtft_many(&[], &omegas).iter().all(|c| c.norm() == 0.0));
-    }
 
     #[test]
     fn matches_the_definition_over_long_sequences() {

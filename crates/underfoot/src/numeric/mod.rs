@@ -22,7 +22,7 @@ pub mod trf;
 pub mod window;
 
 pub use bilinear::{bilinear, prewarp_constant};
-pub use dtft::{dtft, dtft_many};
+pub use dtft::dtft;
 pub use lstsq::{NumericalError, solve_scaled, svd};
 pub use roots::roots;
 pub use stats::{median, normal_quantile, percentile};

@@ -73,7 +73,13 @@ impl Biquad {
     /// Complex response at `omega` radians per sample.
     #[must_use]
     pub fn response(&self, omega: f64) -> Complex64 {
-        let z1 = Complex64::from_polar(1.0, -omega);
+        self.response_at(Complex64::from_polar(1.0, -omega))
+    }
+
+    /// The response at `z^-1 = z1` (`e^{-jω}` on the unit circle): [`Self::response`]
+    /// with the sine and cosine computed once by the caller.
+    #[must_use]
+    pub fn response_at(&self, z1: Complex64) -> Complex64 {
         let z2 = z1 * z1;
         (self.b[0] + self.b[1] * z1 + self.b[2] * z2)
             / (self.a[0] + self.a[1] * z1 + self.a[2] * z2)
@@ -179,9 +185,16 @@ impl Sos {
     /// Complex response at `omega` radians per sample.
     #[must_use]
     pub fn response(&self, omega: f64) -> Complex64 {
+        self.response_at(Complex64::from_polar(1.0, -omega))
+    }
+
+    /// The response at `z^-1 = z1` (`e^{-jω}` on the unit circle): [`Self::response`]
+    /// with the sine and cosine computed once by the caller, for every section.
+    #[must_use]
+    pub fn response_at(&self, z1: Complex64) -> Complex64 {
         self.sections
             .iter()
-            .fold(Complex64::new(1.0, 0.0), |h, s| h * s.response(omega))
+            .fold(Complex64::new(1.0, 0.0), |h, s| h * s.response_at(z1))
     }
 
     /// Whether every pole lies strictly inside the unit circle.

@@ -9,7 +9,7 @@
  * for drives at those levels (the Q15 cascade's 32-bit output, before any
  * rounding to a DAC's width). Pole margin: 1 - |p| of the pole nearest the unit circle.
  *   material          sos               f32               Q15               Q31    margin
- *   test-tile           2     6.5e-6/1.6e-5     8.3e-4/8.4e-4     8.9e-8/5.1e-5  0.025321
+ *   test-tile           2     6.5e-6/1.6e-5     8.3e-4/8.4e-4     8.9e-8/1.2e-4  0.025321
  *
  * Excitation (uf_exc_*; UF_NO_EXCITATION leaves it out): per material the bins of its
  * profile, the micro-impacts of a nominal step on average, the heel's share of a

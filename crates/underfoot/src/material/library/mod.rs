@@ -244,6 +244,9 @@ fn supported_list() -> String {
         .join(", ")
 }
 
+/// The most names a not-found message lists.
+const LISTED_NAMES: usize = 24;
+
 struct AvailableList<'a>(&'a [String]);
 
 impl fmt::Display for AvailableList<'_> {
@@ -251,7 +254,13 @@ impl fmt::Display for AvailableList<'_> {
         if self.0.is_empty() {
             f.write_str("the library is empty")
         } else {
-            write!(f, "available: {}", self.0.join(", "))
+            // A library of thousands would bury the message under its names.
+            let shown = self.0.len().min(LISTED_NAMES);
+            write!(f, "available: {}", self.0[..shown].join(", "))?;
+            match self.0.len() - shown {
+                0 => Ok(()),
+                more => write!(f, " and {more} more (`underfoot library list` shows all)"),
+            }
         }
     }
 }

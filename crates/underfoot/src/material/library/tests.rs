@@ -370,6 +370,15 @@ fn upsert_replaces_in_place_and_get_remove_report_missing_names() {
         }
         other => panic!("expected NotFound, got {other:?}"),
     }
+    let mut many = Library::new();
+    for i in 0..30 {
+        many.upsert(model(&format!("m{i}")));
+    }
+    let text = many.get("x").expect_err("not there").to_string();
+    assert!(
+        text.contains("m0, m1,") && text.contains("m23 and 6 more") && !text.contains("m24"),
+        "{text}"
+    );
     let empty = Library::new();
     assert!(
         empty
