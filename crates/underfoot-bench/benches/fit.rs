@@ -43,6 +43,7 @@ fn synthetic() -> Vec<Recording> {
                 rate,
                 samples: x,
                 sha256: String::new(),
+                excerpt: None,
             }
         })
         .collect()

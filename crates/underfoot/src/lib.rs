@@ -114,7 +114,7 @@
 //!     }
 //! }
 //! // Real recordings come from `underfoot::recording::read(path, None)`.
-//! let floor = Recording { name: "floor.wav".into(), rate, samples, sha256: String::new() };
+//! let floor = Recording { name: "floor.wav".into(), rate, samples, sha256: String::new(), excerpt: None };
 //!
 //! // Conditioning, strike detection, the measured response and the order search,
 //! // with the defaults: 2 kHz analysis rate, 20-900 Hz band, order up to 16.

@@ -204,10 +204,10 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
     ))?;
     for (i, (name, folder)) in args.materials.iter().enumerate() {
         let files = &recordings_of[i];
-        let recordings = files
-            .iter()
-            .map(|f| recording::read(f, None))
-            .collect::<Result<Vec<_>, _>>()?;
+        let mut recordings = Vec::with_capacity(files.len());
+        for f in files {
+            recordings.extend(recording::read_for_analysis(f, None)?);
+        }
         let model = build_material(name, &recordings, &cfg, &mut |_| {})
             .with_context(|| format!("fitting {name} from {}", folder.display()))?;
         let Some(physical) = &model.physical else {

@@ -298,7 +298,28 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     for path in &args.files {
         reading.set_message(path.display().to_string());
         // Every RecordingError names its file.
-        recordings.push(recording::read(path, csv.as_ref())?);
+        let read = recording::read_for_analysis(path, csv.as_ref())?;
+        if let Some(e) = read.first().and_then(|r| r.excerpt) {
+            let seconds = e.file_frames as f64 / read[0].rate.hz();
+            let how = match e.strikes {
+                0 => "around its loudest moment: no strike stands above its noise".into(),
+                found if e.kept < e.cut => format!(
+                    "(of {}) around its {found} strikes, spread evenly over it",
+                    e.cut
+                ),
+                found => format!("around its {found} strikes"),
+            };
+            reading.suspend(|| {
+                eprintln!(
+                    "underfoot: {}: {seconds:.0} s long, read as {} excerpt{} {how} \
+                     (see underfoot::recording::excerpts)",
+                    path.display(),
+                    e.kept,
+                    if e.kept == 1 { "" } else { "s" },
+                );
+            });
+        }
+        recordings.extend(read);
         reading.inc(1);
     }
     reading.finish_and_clear();
@@ -355,25 +376,26 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     // --out as it was, like any other.
     // Computed for every fit of a few recordings (one refit each, without the physical
     // calibration): a set that mixes materials fits well in-sample and only this shows it.
-    let left_out = if args.report.is_some() || recordings.len() <= MAX_LOO_RECORDINGS {
-        // The warning needs the spectra only: without --report (which renders the
-        // left-out models' steps), the refits skip fitting the excitation, most of
-        // their time.
-        let check_cfg = if args.report.is_some() {
-            cfg.clone()
+    let left_out =
+        if args.report.is_some() || recording::by_file(&recordings).len() <= MAX_LOO_RECORDINGS {
+            // The warning needs the spectra only: without --report (which renders the
+            // left-out models' steps), the refits skip fitting the excitation, most of
+            // their time.
+            let check_cfg = if args.report.is_some() {
+                cfg.clone()
+            } else {
+                BuildConfig {
+                    excitation: None,
+                    ..cfg.clone()
+                }
+            };
+            Some(
+                leave_one_out(&recordings, &check_cfg, &model)
+                    .with_context(|| format!("leave-one-out check of {:?}", args.material))?,
+            )
         } else {
-            BuildConfig {
-                excitation: None,
-                ..cfg.clone()
-            }
+            None
         };
-        Some(
-            leave_one_out(&recordings, &check_cfg, &model)
-                .with_context(|| format!("leave-one-out check of {:?}", args.material))?,
-        )
-    } else {
-        None
-    };
     if let Some(Some(loo)) = &left_out
         && let Some(warning) = crate::report::generalisation_warning(&model, loo)
     {

@@ -596,3 +596,79 @@ fn fit_names_the_recording_that_does_not_belong() {
         }
     }
 }
+
+/// Issue 30 item 6: a 30-minute recording (44.1 kHz, 900 strikes) is fitted within
+/// 300 MB; the whole file in memory took 7.7 GB. The child's peak resident memory is
+/// its `VmHWM`, polled until it exits (Linux only).
+#[cfg(target_os = "linux")]
+#[test]
+#[ignore = "slow tier: a 30-minute recording"]
+fn a_thirty_minute_recording_is_fitted_within_300_mb() {
+    let dir = tempfile::tempdir().unwrap();
+    let wav = dir.path().join("half-hour.wav");
+    let rate = 44_100u32;
+    let fs = f64::from(rate);
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: rate,
+        bits_per_sample: 16,
+        sample_format: hound::SampleFormat::Int,
+    };
+    let mut rng = underfoot::signal::noise::SplitMix64::new(0x5eed);
+    let mut w = hound::WavWriter::create(&wav, spec).unwrap();
+    let period = 2 * rate as usize;
+    let ring = (0.3 * fs) as usize;
+    let mut gain = 0.4;
+    for n in 0..1800 * rate as usize {
+        let k = n % period;
+        if k == 0 {
+            gain = 0.3 + 0.2 * rng.uniform();
+        }
+        let mut x = 2e-4 * (rng.uniform() - 0.5);
+        if k < ring {
+            let t = k as f64 / fs;
+            x += gain
+                * (-t / 0.04).exp()
+                * ((std::f64::consts::TAU * 120.0 * t).sin() + 0.2 * (rng.uniform() - 0.5));
+        }
+        w.write_sample((x * 32767.0).round() as i16).unwrap();
+    }
+    w.finalize().unwrap();
+
+    let lib = dir.path().join("lib.json");
+    let mut child = std::process::Command::new(crate::common::bin())
+        .args(["fit", "--name", "walk", "--library", s(&lib), s(&wav)])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let status = format!("/proc/{}/status", child.id());
+    let mut peak_kb = 0u64;
+    let done = loop {
+        if let Ok(text) = fs::read_to_string(&status)
+            && let Some(kb) = text
+                .lines()
+                .find_map(|l| l.strip_prefix("VmHWM:"))
+                .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+        {
+            peak_kb = peak_kb.max(kb);
+        }
+        if let Some(done) = child.try_wait().unwrap() {
+            break done;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(done.success(), "{err}");
+    eprintln!("a 30-minute recording: peak {} MB", peak_kb / 1024);
+    assert!(peak_kb > 0 && peak_kb < 300 * 1024, "peak {peak_kb} kB");
+    assert!(
+        err.contains("read as 256 excerpts (of 900) around its 900 strikes"),
+        "{err}"
+    );
+    let lib = Library::load(&lib).unwrap();
+    let m = lib.get("walk").unwrap();
+    assert_eq!(m.sources.len(), 1);
+    assert!(m.fit.strikes >= 200, "{}", m.fit.strikes);
+}

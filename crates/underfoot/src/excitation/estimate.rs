@@ -968,6 +968,7 @@ mod tests_support {
             rate: SampleRate(8000),
             samples: y,
             sha256: String::new(),
+            excerpt: None,
         }
     }
 }

@@ -242,8 +242,10 @@ pub fn build_material_with_report(
                 a.band,
             )),
         },
-        sources: recordings
-            .iter()
+        // A long recording's excerpts are one source.
+        sources: crate::recording::by_file(recordings)
+            .into_iter()
+            .map(|file| &recordings[file.start])
             .map(|r| SourceFile {
                 file: r.name.clone(),
                 sha256: r.sha256.clone(),

@@ -33,6 +33,7 @@ pub fn segment_lsd(
         rate,
         samples: samples.iter().map(|v| f64::from(*v)).collect(),
         sha256: String::new(),
+        excerpt: None,
     };
     let config = AnalysisConfig {
         rate: model.sample_rate,

@@ -27,7 +27,7 @@ use symphonia::core::codecs::audio::AudioDecoderOptions;
 use symphonia::core::errors::Error as SymError;
 use symphonia::core::formats::probe::Hint;
 use symphonia::core::formats::{FormatOptions, TrackType};
-use symphonia::core::io::{MediaSourceStream, MediaSourceStreamOptions};
+use symphonia::core::io::{MediaSource, MediaSourceStream, MediaSourceStreamOptions};
 use symphonia::core::meta::MetadataOptions;
 
 /// The most channels a WAV header may declare. Symphonia computes the block size as a
@@ -47,17 +47,60 @@ pub(crate) fn decode_audio(
     file: &Path,
     bytes: &[u8],
 ) -> Result<(SampleRate, Vec<f64>), RecordingError> {
-    let corrupt = |reason: String| RecordingError::Corrupt {
-        file: file.to_path_buf(),
-        reason,
-    };
     if let Some(fault) = wav_header_fault(bytes) {
-        return Err(corrupt(fault));
+        return Err(RecordingError::Corrupt {
+            file: file.to_path_buf(),
+            reason: fault,
+        });
     }
-    std::panic::catch_unwind(|| decode_with_symphonia(file, bytes)).unwrap_or_else(|_| {
-        Err(corrupt(
-            "the audio decoder failed on this file (a fault in the decoder library)".into(),
-        ))
+    let mut sink = Collect::default();
+    let rate = decode_source(file, Box::new(Cursor::new(bytes)), &mut sink)?;
+    Ok((rate, sink.samples))
+}
+
+/// Where decoded audio goes, a packet's frames at a time, mixed to mono.
+pub(crate) trait Sink {
+    /// Before the first frames: how many the header promises, when it says.
+    fn begin(&mut self, _promised_frames: Option<u64>) {}
+    /// The next frames, at `rate` (as the packet says; 0 is refused after the last).
+    fn push(&mut self, rate: SampleRate, mono: &[f64]);
+}
+
+/// A sink that keeps every frame.
+#[derive(Default)]
+pub(crate) struct Collect {
+    pub(crate) samples: Vec<f64>,
+}
+
+impl Sink for Collect {
+    fn begin(&mut self, promised_frames: Option<u64>) {
+        // Sized from the header when it gives a length (bounded above by the frame cap,
+        // checked before): growing by doubling would hold up to twice the recording.
+        self.samples
+            .reserve(promised_frames.map_or(0, |n| n as usize));
+    }
+
+    fn push(&mut self, _rate: SampleRate, mono: &[f64]) {
+        self.samples.extend_from_slice(mono);
+    }
+}
+
+/// Decodes `source` into `sink`, returning the rate. The headers must have been checked
+/// ([`wav_header_fault`], [`riff_fault_at`]).
+///
+/// A panic inside the decoder library is reported as a corrupt file rather than ending
+/// the program.
+pub(crate) fn decode_source(
+    file: &Path,
+    source: Box<dyn MediaSource + '_>,
+    sink: &mut dyn Sink,
+) -> Result<SampleRate, RecordingError> {
+    let run = std::panic::AssertUnwindSafe(|| decode_with_symphonia(file, source, sink));
+    std::panic::catch_unwind(run).unwrap_or_else(|_| {
+        Err(RecordingError::Corrupt {
+            file: file.to_path_buf(),
+            reason: "the audio decoder failed on this file (a fault in the decoder library)".into(),
+        })
     })
 }
 
@@ -70,33 +113,50 @@ pub(crate) fn decode_audio(
 /// before a stream), so every `RIFF....WAVE` in the bytes is checked, not only one at
 /// offset 0.
 fn wav_header_fault(bytes: &[u8]) -> Option<String> {
+    let at = |from: usize, len: usize| {
+        from.checked_add(len)
+            .and_then(|end| bytes.get(from..end))
+            .map(<[u8]>::to_vec)
+    };
+    riff_starts(bytes, 0)
+        .into_iter()
+        .find_map(|start| riff_fault_at(&at, start))
+}
+
+/// Where `RIFF....WAVE` begins in `bytes`, which start at offset `base` of the file.
+pub(crate) fn riff_starts(bytes: &[u8], base: usize) -> Vec<usize> {
     bytes
         .windows(12)
         .enumerate()
         .filter(|(_, w)| &w[..4] == b"RIFF" && &w[8..] == b"WAVE")
-        .find_map(|(at, _)| riff_fault(&bytes[at..]))
+        .map(|(i, _)| base + i)
+        .collect()
 }
 
-/// [`wav_header_fault`] for a RIFF/WAVE header at the start of `bytes`.
+/// [`wav_header_fault`] for a RIFF/WAVE header at offset `start` of a file that
+/// `read(at, len)` reads (`None` past its end).
 ///
 /// The chunks are walked the ways a decoder may walk them: by each chunk's declared size
 /// (padded to even), and, after a `fmt ` chunk with an extension, by the extension's own
 /// size (`cbSize`), which symphonia follows even where it disagrees with the chunk's size
 /// (found by libFuzzer). Every chunk start reachable either way is looked at once.
-fn riff_fault(bytes: &[u8]) -> Option<String> {
-    let mut pending = vec![12usize];
+pub(crate) fn riff_fault_at(
+    read: &dyn Fn(usize, usize) -> Option<Vec<u8>>,
+    start: usize,
+) -> Option<String> {
+    let mut pending = vec![start + 12];
     let mut seen = std::collections::HashSet::new();
     while let Some(at) = pending.pop() {
         if !seen.insert(at) {
             continue;
         }
-        let Some(header) = at.checked_add(8).and_then(|end| bytes.get(at..end)) else {
+        let Some(header) = read(at, 8) else {
             continue;
         };
         let size = u32::from_le_bytes([header[4], header[5], header[6], header[7]]) as usize;
         let body = at + 8;
         if &header[..4] == b"fmt " {
-            if let Some(c) = bytes.get(body + 2..body + 4) {
+            if let Some(c) = read(body + 2, 2) {
                 let channels = u16::from_le_bytes([c[0], c[1]]);
                 if channels == 0 || channels > MAX_WAV_CHANNELS {
                     return Some(format!(
@@ -106,7 +166,7 @@ fn riff_fault(bytes: &[u8]) -> Option<String> {
             }
             // Not the end: the decoder reads every `fmt ` chunk, and a later one is the
             // format it keeps (found by libFuzzer).
-            if let Some(c) = bytes.get(body + 16..body + 18) {
+            if let Some(c) = read(body + 16, 2) {
                 let extension = usize::from(u16::from_le_bytes([c[0], c[1]]));
                 pending.push(body + 18 + extension);
             }
@@ -121,17 +181,15 @@ fn riff_fault(bytes: &[u8]) -> Option<String> {
 
 fn decode_with_symphonia(
     file: &Path,
-    bytes: &[u8],
-) -> Result<(SampleRate, Vec<f64>), RecordingError> {
+    source: Box<dyn MediaSource + '_>,
+    sink: &mut dyn Sink,
+) -> Result<SampleRate, RecordingError> {
     let corrupt = |reason: String| RecordingError::Corrupt {
         file: file.to_path_buf(),
         reason,
     };
 
-    let mss = MediaSourceStream::new(
-        Box::new(Cursor::new(bytes)),
-        MediaSourceStreamOptions::default(),
-    );
+    let mss = MediaSourceStream::new(source, MediaSourceStreamOptions::default());
     let mut hint = Hint::new();
     if let Some(ext) = file.extension().and_then(|e| e.to_str()) {
         hint.with_extension(ext);
@@ -177,9 +235,9 @@ fn decode_with_symphonia(
         .make_audio_decoder(&params, &AudioDecoderOptions::default())
         .map_err(|e| corrupt(format!("no decoder for this codec ({e})")))?;
 
-    // Sized from the header when it gives a length (bounded above): growing by doubling
-    // would hold up to twice the recording at the end.
-    let mut mono: Vec<f64> = Vec::with_capacity(promised_frames.map_or(0, |n| n as usize));
+    sink.begin(promised_frames);
+    let mut frames = 0usize;
+    let mut mono: Vec<f64> = Vec::new();
     let mut channels: Option<usize> = None;
     let mut interleaved: Vec<f64> = Vec::new();
     let mut packet_index = 0usize;
@@ -194,8 +252,7 @@ fn decode_with_symphonia(
             }
             Err(e) => {
                 return Err(corrupt(format!(
-                    "demuxing failed after {} frames, truncated or damaged ({e})",
-                    mono.len()
+                    "demuxing failed after {frames} frames, truncated or damaged ({e})"
                 )));
             }
         };
@@ -233,25 +290,27 @@ fn decode_with_symphonia(
             }
             Some(_) => {}
         }
-        if mono.len() + buf.frames() > MAX_RECORDING_FRAMES {
+        if frames + buf.frames() > MAX_RECORDING_FRAMES {
             return Err(too_long());
         }
         buf.copy_to_vec_interleaved(&mut interleaved);
         let inv = 1.0 / c as f64;
+        mono.clear();
         mono.extend(
             interleaved
                 .chunks_exact(c)
                 .map(|frame| frame.iter().sum::<f64>() * inv),
         );
+        frames += mono.len();
+        sink.push(SampleRate(spec.rate()), &mono);
     }
 
-    if let Some(n) = promised_frames.filter(|&n| (mono.len() as u64) < n) {
+    if let Some(n) = promised_frames.filter(|&n| (frames as u64) < n) {
         return Err(corrupt(format!(
-            "truncated: the header promises {n} frames but only {} could be decoded",
-            mono.len()
+            "truncated: the header promises {n} frames but only {frames} could be decoded"
         )));
     }
-    if mono.is_empty() {
+    if frames == 0 {
         return Err(RecordingError::Empty {
             file: file.to_path_buf(),
         });
@@ -261,7 +320,7 @@ fn decode_with_symphonia(
         Some(r) => r,
         None => return Err(invalid_rate(file, "the stream gives no sample rate".into())),
     };
-    Ok((SampleRate(rate), mono))
+    Ok(SampleRate(rate))
 }
 
 fn invalid_rate(file: &Path, reason: String) -> RecordingError {

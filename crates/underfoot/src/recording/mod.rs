@@ -37,13 +37,18 @@
 //! [`RecordingError::TooLong`] before memory grows further, so a device node (`/dev/zero`)
 //! or a pipe that never ends is refused too.
 //!
+//! A long recording (a walk of minutes) is read by [`read_for_analysis`] as excerpts
+//! around its strikes, never held whole: see [`excerpts`].
+//!
 //! Heel strikes are found in [`strikes`].
 mod csv;
 mod decode;
 mod error;
+pub mod excerpts;
 pub mod strikes;
 
 pub use error::RecordingError;
+pub use excerpts::{Excerpt, by_file, read_for_analysis};
 
 use crate::document::FileError;
 use crate::limits::read_capped;
@@ -69,6 +74,9 @@ pub struct Recording {
     pub samples: Vec<f64>,
     /// SHA-256 of the file's bytes, lower-case hex.
     pub sha256: String,
+    /// Where in its file this excerpt of a long recording is (see [`excerpts`]); `None`
+    /// for a whole recording.
+    pub excerpt: Option<Excerpt>,
 }
 
 impl Recording {
@@ -165,6 +173,7 @@ fn decode_and_check(
         rate,
         samples,
         sha256: sha256_hex(bytes),
+        excerpt: None,
     })
 }
 
@@ -215,8 +224,12 @@ fn check(file: &Path, rate: SampleRate, x: &[f64]) -> Result<(), RecordingError>
 }
 
 fn sha256_hex(bytes: &[u8]) -> String {
+    hex(&Sha256::digest(bytes))
+}
+
+/// A digest as lower-case hex.
+fn hex(digest: &[u8]) -> String {
     use std::fmt::Write;
-    let digest = Sha256::digest(bytes);
     digest.iter().fold(String::with_capacity(64), |mut s, b| {
         let _ = write!(s, "{b:02x}");
         s

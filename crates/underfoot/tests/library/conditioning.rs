@@ -194,6 +194,7 @@ fn synthetic_strike(rate: SampleRate, lead: f64, length: f64, seed: u64) -> Reco
         rate,
         samples,
         sha256: String::new(),
+        excerpt: None,
     }
 }
 

@@ -21,6 +21,7 @@ mod fit_oracle;
 mod hardware_guide;
 mod layers;
 mod live_offline;
+mod long_recording;
 mod physical;
 mod quality;
 mod real_data;

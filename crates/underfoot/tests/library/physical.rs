@@ -104,6 +104,7 @@ fn struck_floor(modes: &[(f64, f64, f64)], strikes: usize, seed: u64) -> Recordi
         rate,
         samples,
         sha256: String::new(),
+        excerpt: None,
     }
 }
 

@@ -274,8 +274,9 @@ fn fit(
     };
     let mut recordings = Vec::with_capacity(uploads.len());
     for u in uploads {
-        let r = recording::read(&u.path, None).map_err(|e| anyhow::anyhow!("{}: {e}", u.name))?;
-        recordings.push(r);
+        let r = recording::read_for_analysis(&u.path, None)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", u.name))?;
+        recordings.extend(r);
     }
     let cfg = BuildConfig::default();
     let mut tried = 0;

@@ -98,10 +98,10 @@ fn levels(
     analysis: &AnalysisConfig,
     grid: &[Hz],
 ) -> Result<Vec<Vec<f64>>, AnalysisError> {
-    recordings
-        .iter()
-        .map(|r| {
-            let m = measure(std::slice::from_ref(r), analysis)?;
+    crate::recording::by_file(recordings)
+        .into_iter()
+        .map(|file| {
+            let m = measure(&recordings[file], analysis)?;
             Ok(m.on_grid(grid)
                 .iter()
                 .map(|&v| Decibels::from_amplitude(v).0)
@@ -127,10 +127,11 @@ pub fn disagreement(
     let grid = analysis.band.log_grid(crate::fit::metrics::METRIC_POINTS);
     let levels = levels(recordings, analysis, &grid)?;
     let n = levels.len();
-    let spread = recordings
+    let files = crate::recording::by_file(recordings);
+    let spread = files
         .iter()
         .enumerate()
-        .map(|(i, r)| {
+        .map(|(i, file)| {
             let lsd = if n < 2 {
                 0.0
             } else {
@@ -146,7 +147,7 @@ pub fn disagreement(
                 aligned_lsd_db(&levels[i], &others)
             };
             Spread {
-                file: r.name.clone(),
+                file: recordings[file.start].name.clone(),
                 lsd: Decibels(lsd),
             }
         })

@@ -81,7 +81,9 @@ pub fn leave_one_out(
     cfg: &BuildConfig,
     full: &MaterialModel,
 ) -> Result<Option<LeaveOneOut>, BuildError> {
-    if recordings.len() < 2 {
+    // A long recording's excerpts are held out together: they are one file.
+    let files = crate::recording::by_file(recordings);
+    if files.len() < 2 {
         return Ok(None);
     }
     let sub_cfg = BuildConfig {
@@ -100,16 +102,16 @@ pub fn leave_one_out(
     };
     let grid: Vec<Hz> = full.fit.grid_hz.iter().map(|&f| Hz(f)).collect();
     let full_db = db(&full.fit.model);
-    let mut held_out = Vec::with_capacity(recordings.len());
-    for (i, rec) in recordings.iter().enumerate() {
-        let others: Vec<Recording> = recordings
+    let mut held_out = Vec::with_capacity(files.len());
+    for file in &files {
+        let left: &[Recording] = &recordings[file.clone()];
+        let others: Vec<Recording> = recordings[..file.start]
             .iter()
-            .enumerate()
-            .filter(|&(j, _)| j != i)
-            .map(|(_, r)| r.clone())
+            .chain(&recordings[file.end..])
+            .cloned()
             .collect();
         let model = build_material(&full.name, &others, &sub_cfg, &mut |_| {})?;
-        let measured = measure(std::slice::from_ref(rec), &cfg.analysis)?;
+        let measured = measure(left, &cfg.analysis)?;
         let measured_db = db(&measured.on_grid(&grid));
         let model_db = db(&model.fit.model);
         let gain = measured_db
@@ -122,7 +124,11 @@ pub fn leave_one_out(
             band: cfg.analysis.band,
             ..StepConfig::default()
         };
-        let steps = describe_all(&rec.samples, rec.rate, None, &steps_cfg)?;
+        let mut steps = Vec::new();
+        for rec in left {
+            steps.extend(describe_all(&rec.samples, rec.rate, None, &steps_cfg)?);
+        }
+        let rec = &left[0];
         held_out.push(HeldOut {
             file: rec.name.clone(),
             strikes: measured.strikes.len(),

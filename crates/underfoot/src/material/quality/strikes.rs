@@ -97,21 +97,31 @@ pub fn check_recordings(
     analysis: &AnalysisConfig,
     cfg: &QualityConfig,
 ) -> Result<RecordingsQuality, QualityError> {
-    let mut strike_to_noise_all = Vec::with_capacity(recordings.len());
-    for rec in recordings {
-        let x = condition(rec, analysis)?;
-        let snr = strike_to_noise(&x, analysis.rate, cfg);
-        let strikes =
-            crate::recording::strikes::find_onsets(&x, analysis.rate, &analysis.onsets).len();
+    // A long recording's excerpts are one file: its ratio is its loudest excerpt's
+    // (each measured against the noise around it), its strikes are theirs together.
+    let files = crate::recording::by_file(recordings);
+    let mut strike_to_noise_all = Vec::with_capacity(files.len());
+    for file in &files {
+        let mut snr = Decibels(f64::NEG_INFINITY);
+        let mut strikes = 0;
+        for rec in &recordings[file.clone()] {
+            let x = condition(rec, analysis)?;
+            let here = strike_to_noise(&x, analysis.rate, cfg);
+            if here.0.is_nan() || here.0 > snr.0 {
+                snr = here;
+            }
+            strikes +=
+                crate::recording::strikes::find_onsets(&x, analysis.rate, &analysis.onsets).len();
+        }
         strike_to_noise_all.push(StrikeToNoise {
-            file: rec.name.clone(),
+            file: recordings[file.start].name.clone(),
             snr,
             strikes,
         });
     }
     // With one recording, no strike is the analysis' own error; with several, a recording
     // without one would silently add nothing.
-    let several = recordings.len() > 1;
+    let several = files.len() > 1;
     let failed: Vec<StrikeToNoise> = strike_to_noise_all
         .iter()
         .filter(|s| {

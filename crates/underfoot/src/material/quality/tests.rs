@@ -37,6 +37,7 @@ fn recording(name: &str, rate: u32, samples: Vec<f64>) -> Recording {
         rate: SampleRate(rate),
         samples,
         sha256: "00".repeat(32),
+        excerpt: None,
     }
 }
 

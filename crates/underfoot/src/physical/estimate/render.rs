@@ -101,6 +101,7 @@ pub(super) fn render_measure(
             rate: RENDER_RATE,
             samples: samples.iter().map(|v| f64::from(*v)).collect(),
             sha256: String::new(),
+            excerpt: None,
         };
         Ok((measure(&[recording], &cfg.analysis)?, peak))
     };
