@@ -313,4 +313,50 @@ mod tests {
             clashes.join("\n")
         );
     }
+
+    /// Every option that takes a value and may be left out says what happens then: a
+    /// default clap shows, or its help says "default" (or what leaving it out means).
+    #[test]
+    fn every_option_states_its_default() {
+        fn walk(c: &clap::Command, path: &str, out: &mut Vec<String>) {
+            for a in c.get_arguments() {
+                let takes_value = a.get_action().takes_values();
+                if !takes_value || a.is_required_set() || a.is_positional() {
+                    continue;
+                }
+                if !a.get_default_values().is_empty() {
+                    continue;
+                }
+                let help = [a.get_help(), a.get_long_help()]
+                    .into_iter()
+                    .flatten()
+                    .map(|h| h.to_string().to_lowercase())
+                    .collect::<Vec<_>>()
+                    .join(" ");
+                if !(help.contains("default") || help.contains("without it")) {
+                    out.push(format!(
+                        "`{path}` --{}: {}",
+                        a.get_long().unwrap_or("?"),
+                        help.lines().next().unwrap_or("")
+                    ));
+                }
+            }
+            for s in c.get_subcommands() {
+                let sub = if path.is_empty() {
+                    s.get_name().to_owned()
+                } else {
+                    format!("{path} {}", s.get_name())
+                };
+                walk(s, &sub, out);
+            }
+        }
+        let mut missing = Vec::new();
+        walk(&crate::command_line(), "", &mut missing);
+        assert!(
+            missing.is_empty(),
+            "{} options do not say what leaving them out does:\n{}",
+            missing.len(),
+            missing.join("\n")
+        );
+    }
 }

@@ -59,9 +59,11 @@ use crate::steps::{TimeRow, render_and_compare, time_table};
 #[derive(Debug, Args)]
 pub struct CompareArgs {
     /// Also write the table as JSON here (`-`: standard output, after the table).
+    /// Default: the table only.
     #[arg(long = "json-out", value_name = "FILE.json")]
     json: Option<PathBuf>,
     /// Draw one spectrum plot per material into this directory (created if missing).
+    /// Default: no figures.
     #[arg(long = "plot-dir", value_name = "DIR")]
     plot: Option<PathBuf>,
     /// Image format of the plots.
@@ -282,6 +284,7 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
                         fit: &model.fit,
                         physical: Some(&curve),
                     }],
+                    plot::YRange::Own,
                 )
             })?;
             if omitted == Omitted::Text {

@@ -50,6 +50,10 @@ pub struct DemoArgs {
     /// are set by the demo).
     #[arg(long, default_value = "", value_name = "SPEC")]
     gait: String,
+    /// The dB axis of the spectra figure: one for every material (`shared`: compare
+    /// materials at a glance) or each material its own (`own`: the most detail).
+    #[arg(long, value_enum, default_value_t = plot::YRange::Shared, value_name = "RANGE")]
+    y_range: plot::YRange,
     #[command(flatten)]
     synth: SynthArgs,
 }
@@ -326,7 +330,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         })
         .collect();
     // SVG never omits text (see the plot module), so there is nothing to warn about.
-    let omitted = spectra_out.write_with(|p| plot::draw_spectra(p, &panels))?;
+    let omitted = spectra_out.write_with(|p| plot::draw_spectra(p, &panels, args.y_range))?;
     debug_assert_eq!(omitted, Omitted::Nothing);
 
     let steps_path = steps_out.path().to_path_buf();

@@ -53,9 +53,11 @@ pub struct FitArgs {
     /// Also write a JSON summary of the fit here, and check how the model generalises:
     /// fit on all recordings but one, measure on the one left out, for each in turn
     /// (printed as a table, and in the summary).
+    /// Default: no summary, and leave-one-out only for 12 recordings or fewer.
     #[arg(long, value_name = "R.json")]
     report: Option<PathBuf>,
     /// Also draw measured vs model magnitude here (.svg or .png).
+    /// Default: no figure.
     #[arg(long, value_name = "P.svg|P.png")]
     plot: Option<PathBuf>,
     /// Analysis sample rate in Hz [default: 2000].
@@ -65,6 +67,7 @@ pub struct FitArgs {
     #[arg(long, value_name = "LO:HI")]
     band: Option<Band>,
     /// Fit exactly this filter order.
+    /// Default: the lowest order up to --max-order that meets --target-lsd.
     #[arg(long, value_name = "N", value_parser = parse_order, conflicts_with = "max_order")]
     order: Option<usize>,
     /// Search orders up to N and keep the lowest that meets the targets [default: 16].
@@ -87,9 +90,11 @@ pub struct FitArgs {
     #[arg(long)]
     accept_poor_fit: bool,
     /// For CSV recordings: the column holding the signal (header name or 0-based index).
+    /// Default: none; needed for a CSV recording.
     #[arg(long, value_name = "C", requires = "csv_rate")]
     csv_column: Option<String>,
     /// For CSV recordings: the rate the data was logged at, in Hz.
+    /// Default: none; needed for a CSV recording.
     #[arg(long, value_name = "HZ", value_parser = parse_csv_rate, requires = "csv_column")]
     csv_rate: Option<SampleRate>,
     /// Recordings of heel strikes on the material (WAV, FLAC, Ogg Vorbis, CSV).
@@ -531,6 +536,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
                         fit: &model.fit,
                         physical: None,
                     }],
+                    plot::YRange::Own,
                 )
             })
             .with_context(saved)?;

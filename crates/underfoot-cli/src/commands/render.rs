@@ -47,6 +47,7 @@ pub struct RenderArgs {
     )]
     material: Vec<String>,
     /// Force track (CSV: `time_s,<channel>.<sensor>,...`, newtons).
+    /// Default: none; give this or --gait.
     #[arg(long, value_name = "FILE.csv")]
     force: Option<PathBuf>,
     /// Generate the force of a walk instead, e.g. "steps=12,cadence=1.8,weight=70"
@@ -54,6 +55,7 @@ pub struct RenderArgs {
     #[arg(long, value_name = "SPEC", long_help = gait_help())]
     gait: Option<String>,
     /// Save the generated force track too.
+    /// Default: not saved.
     #[arg(long = "save-force", value_name = "FILE.csv", requires = "gait")]
     save_force: Option<PathBuf>,
     /// Output WAV file: the drive of each channel, nothing else.
@@ -61,6 +63,7 @@ pub struct RenderArgs {
     out: PathBuf,
     /// Also write each channel's total force as the engine saw it to this WAV file of its
     /// own (32-bit float, in kilonewtons, one channel per output channel).
+    /// Default: not written.
     #[arg(long = "force-out", value_name = "FILE.wav")]
     force_out: Option<PathBuf>,
     /// Replaced by --force-out: force no longer shares a file with the drive.

@@ -33,6 +33,7 @@ pub struct ShowArgs {
     dir: PathBuf,
     /// Draw the timeline (force, strikes, output envelope, markers) into FILE (.png or
     /// .svg).
+    /// Default: no figure.
     #[arg(long, value_name = "FILE")]
     plot: Option<PathBuf>,
 }

@@ -115,14 +115,17 @@ pub struct SynthArgs {
     #[arg(long = "sensor-rate", default_value_t = 500.0, value_name = "HZ")]
     pub sensor_rate: f64,
     /// Equalize the device with this equalizer (a `calibrate equalize` file).
+    /// Default: no equalizer.
     #[arg(long, value_name = "FILE")]
     pub eq: Option<PathBuf>,
     /// Compensate this user's limb after the equalizer: a `calibrate limb` file, `table1`
     /// (Table 1's mean user) or `B3K3,K2M2,B2M2`.
+    /// Default: no limb compensation.
     #[arg(long, value_name = "USER", value_parser = parse_user)]
     pub user: Option<UserArg>,
     /// Instead of the limb filter, take the user's equalizer from this table of users
     /// (`eq-table`), interpolated for their parameters; needs --eq and --user.
+    /// Default: no table.
     #[arg(long = "eq-table", value_name = "FILE", requires_all = ["eq", "user"])]
     pub eq_table: Option<PathBuf>,
 }

@@ -10,17 +10,6 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 use super::TITLE_HEIGHT;
 use super::font::FAMILY;
 
-/// Labels a log axis only at 1, 2 and 5 times a power of ten: a label at every grid line
-/// runs the upper decade's labels into each other.
-pub(super) fn one_two_five(f: f64) -> String {
-    let mantissa = f / 10f64.powf(f.log10().floor());
-    if [1.0, 2.0, 5.0].iter().any(|m| (mantissa - m).abs() < 1e-6) {
-        format!("{f:.0}")
-    } else {
-        String::new()
-    }
-}
-
 /// Decimals enough to tell apart the labels of a time axis `span_s` long.
 pub(super) fn time_decimals(span_s: f64) -> usize {
     (1.0 - span_s.log10().floor()).clamp(0.0, 4.0) as usize
@@ -187,6 +176,29 @@ pub(super) fn log_grid(lo: f64, hi: f64) -> (Vec<f64>, Vec<f64>) {
     (bold, light)
 }
 
+/// The labelled frequencies of a band's axis: the 1-2-5 ones inside it, and each edge
+/// unless a 1-2-5 label is within a factor of 1.2 of it (the labels would collide).
+pub(super) fn band_ticks(lo: f64, hi: f64, bold: &[f64]) -> Vec<f64> {
+    let clear = |edge: f64| bold.iter().all(|&b| (b / edge).max(edge / b) >= 1.2);
+    let mut ticks = bold.to_vec();
+    for edge in [lo, hi] {
+        if clear(edge) {
+            ticks.push(edge);
+        }
+    }
+    ticks.sort_by(f64::total_cmp);
+    ticks
+}
+
+/// A frequency label: whole hertz, or one decimal below 10 Hz.
+fn band_label(f: f64) -> String {
+    if f < 10.0 && (f - f.round()).abs() > 1e-9 {
+        format!("{f:.1}")
+    } else {
+        format!("{f:.0}")
+    }
+}
+
 /// The frame of a magnitude plot: dB against log-frequency from `lo` to `hi`, with its
 /// mesh and labels drawn; `y_desc` names the dB axis and what it is relative to.
 pub(super) fn magnitude_chart<'a, DB: DrawingBackend>(
@@ -197,21 +209,20 @@ pub(super) fn magnitude_chart<'a, DB: DrawingBackend>(
     y_desc: &str,
 ) -> Result<MagnitudeChart<'a, DB>, DrawingAreaErrorKind<DB::ErrorType>> {
     let text = |size: f64| (FAMILY, size).into_font().color(&ink);
-    // plotters puts log-axis key points at powers of ten and their multiples only from the
-    // first power of ten inside the range; starting the axis at the decade below the band
-    // keeps the band's lowest frequencies labelled (20 and 50 Hz for the default band).
-    let axis_lo = 10f64.powf(lo.log10().floor());
+    // The axis is the data's band, not the decade around it (from 10 Hz, a band from
+    // 40 Hz left 30% of the plot empty); its ends are labelled too (900 Hz had no tick),
+    // unless a 1-2-5 label sits that close (1024 next to 1000).
+    let (bold, light) = log_grid(lo, hi);
+    let ticks = band_ticks(lo, hi, &bold);
+    let labelled = ticks.clone();
     let mut chart = ChartBuilder::on(&area.margin(TITLE_HEIGHT, 8, 8, 18))
         .x_label_area_size(44)
         .y_label_area_size(58)
         .build_cartesian_2d(
-            {
-                let (bold, light) = log_grid(axis_lo, hi);
-                (axis_lo..hi)
-                    .log_scale()
-                    .with_key_points(bold)
-                    .with_light_points(light)
-            },
+            (lo..hi)
+                .log_scale()
+                .with_key_points(ticks)
+                .with_light_points(light),
             floor..top,
         )?;
     chart
@@ -220,7 +231,13 @@ pub(super) fn magnitude_chart<'a, DB: DrawingBackend>(
         .y_desc(y_desc)
         .label_style(text(13.0))
         .axis_desc_style(text(14.0))
-        .x_label_formatter(&|f| one_two_five(*f))
+        .x_label_formatter(&|f| {
+            if labelled.iter().any(|t| (t - f).abs() <= 1e-9 * t) {
+                band_label(*f)
+            } else {
+                String::new()
+            }
+        })
         .y_label_formatter(&|v| format!("{v:.0}"))
         .light_line_style(BLACK.mix(0.06))
         .bold_line_style(BLACK.mix(0.15))
@@ -233,6 +250,21 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_bands_axis_is_labelled_at_its_edges_unless_a_label_is_close() {
+        let (bold, _) = log_grid(20.0, 900.0);
+        assert_eq!(
+            band_ticks(20.0, 900.0, &bold),
+            [20.0, 50.0, 100.0, 200.0, 500.0, 900.0]
+        );
+        let (bold, _) = log_grid(40.0, 1024.0);
+        // 40 is 1.25 times from 50; 1024 is next to 1000.
+        assert_eq!(
+            band_ticks(40.0, 1024.0, &bold),
+            [40.0, 50.0, 100.0, 200.0, 500.0, 1000.0]
+        );
+    }
+
+    #[test]
     fn the_log_grid_has_each_line_once() {
         let (bold, light) = log_grid(10.0, 1000.0);
         assert_eq!(bold, [10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0]);
@@ -242,13 +274,5 @@ mod tests {
         all.sort_by(f64::total_cmp);
         all.dedup();
         assert_eq!(all.len(), 19);
-    }
-
-    #[test]
-    fn log_axis_labels_only_one_two_five() {
-        let labels: Vec<String> = [20.0, 30.0, 50.0, 100.0, 400.0, 500.0]
-            .map(one_two_five)
-            .to_vec();
-        assert_eq!(labels, ["20", "", "50", "100", "", "500"]);
     }
 }

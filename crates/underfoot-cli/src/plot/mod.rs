@@ -35,7 +35,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 pub use responses::{Curve, draw_responses};
-pub use spectra::{Panel, draw_spectra};
+pub use spectra::{Panel, YRange, draw_spectra};
 pub use spectrogram::{Segment, draw_spectrogram};
 pub use steps::{StepPanel, draw_steps};
 pub use timeline::{Timeline, TimelineMarker, draw_timeline};

@@ -22,10 +22,20 @@ pub struct Panel<'a> {
     pub physical: Option<&'a [f64]>,
 }
 
+/// The dB axis of a figure of several panels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum YRange {
+    /// One range for every panel, so that materials compare at a glance.
+    #[default]
+    Shared,
+    /// Each panel its own range, the most detail for each.
+    Own,
+}
+
 /// Draws `panels` into `path` (two columns when there is more than one panel).
-pub fn draw_spectra(path: &Path, panels: &[Panel<'_>]) -> anyhow::Result<Omitted> {
+pub fn draw_spectra(path: &Path, panels: &[Panel<'_>], y: YRange) -> anyhow::Result<Omitted> {
     draw(path, |format, show_text| {
-        render(path, format, panels, show_text)
+        render(path, format, panels, y, show_text)
     })
 }
 
@@ -35,6 +45,7 @@ fn render(
     path: &Path,
     format: Format,
     panels: &[Panel<'_>],
+    y: YRange,
     show_text: bool,
 ) -> anyhow::Result<()> {
     if panels.is_empty() {
@@ -54,6 +65,7 @@ fn render(
     let figure = Spectra {
         panels,
         grid: (rows, cols),
+        ranges: ranges(panels, y),
         show_text,
     };
     write_figure(path, format, size, &figure)
@@ -63,6 +75,8 @@ fn render(
 struct Spectra<'a> {
     panels: &'a [Panel<'a>],
     grid: (usize, usize),
+    /// `(floor, top)` of each panel.
+    ranges: Vec<(f64, f64)>,
     show_text: bool,
 }
 
@@ -72,8 +86,9 @@ impl Figure for Spectra<'_> {
         root: &DrawingArea<DB, Shift>,
     ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
         root.fill(&WHITE)?;
-        for (area, panel) in root.split_evenly(self.grid).iter().zip(self.panels) {
-            draw_panel(area, panel, self.show_text)?;
+        let areas = root.split_evenly(self.grid);
+        for ((area, panel), &range) in areas.iter().zip(self.panels).zip(&self.ranges) {
+            draw_panel(area, panel, range, self.show_text)?;
         }
         Ok(())
     }
@@ -83,15 +98,24 @@ fn db(m: f64) -> f64 {
     20.0 * m.log10()
 }
 
-fn draw_panel<DB: DrawingBackend>(
-    area: &DrawingArea<DB, Shift>,
-    panel: &Panel<'_>,
-    show_text: bool,
-) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
-    let fit = panel.fit;
-    let ink = ink(show_text);
-    let text = |size: f64| (FAMILY, size).into_font().color(&ink);
+/// `(floor, top)` of each panel: its own, or one range holding them all (never deeper
+/// than [`FLOOR_DB`] under the loudest).
+fn ranges(panels: &[Panel<'_>], y: YRange) -> Vec<(f64, f64)> {
+    let own: Vec<(f64, f64)> = panels.iter().map(db_range).collect();
+    match y {
+        YRange::Own => own,
+        YRange::Shared => {
+            let top = own.iter().map(|r| r.1).fold(f64::NEG_INFINITY, f64::max);
+            let floor = own.iter().map(|r| r.0).fold(f64::INFINITY, f64::min);
+            vec![(floor.max(top - FLOOR_DB - 6.0), top); panels.len()]
+        }
+    }
+}
 
+/// `(floor, top)` of a panel drawn on its own: 3 dB around its curves, at most
+/// [`FLOOR_DB`] deep.
+fn db_range(panel: &Panel<'_>) -> (f64, f64) {
+    let fit = panel.fit;
     let all_db = fit
         .measured
         .iter()
@@ -100,13 +124,24 @@ fn draw_panel<DB: DrawingBackend>(
         .map(|&m| db(m))
         .filter(|v| v.is_finite());
     let top = all_db.clone().fold(f64::NEG_INFINITY, f64::max);
-    let (top, floor) = if top.is_finite() {
+    if top.is_finite() {
         let low = all_db.fold(f64::INFINITY, f64::min).max(top - FLOOR_DB);
-        (top + 3.0, low - 3.0)
+        (low - 3.0, top + 3.0)
     } else {
         // All magnitudes are zero: an empty frame is the honest picture.
-        (0.0, -FLOOR_DB)
-    };
+        (-FLOOR_DB, 0.0)
+    }
+}
+
+fn draw_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    panel: &Panel<'_>,
+    (floor, top): (f64, f64),
+    show_text: bool,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let fit = panel.fit;
+    let ink = ink(show_text);
+    let text = |size: f64| (FAMILY, size).into_font().color(&ink);
     let series = |values: &[f64]| -> Vec<(f64, f64)> {
         fit.grid_hz
             .iter()
@@ -196,6 +231,32 @@ mod tests {
     }
 
     #[test]
+    fn a_shared_range_holds_every_panel_and_is_the_same_for_all() {
+        let loud = record();
+        let mut quiet = record();
+        quiet.measured.iter_mut().for_each(|m| *m *= 0.01);
+        quiet.model.iter_mut().for_each(|m| *m *= 0.01);
+        let panels = [
+            Panel {
+                title: "loud".into(),
+                fit: &loud,
+                physical: None,
+            },
+            Panel {
+                title: "quiet".into(),
+                fit: &quiet,
+                physical: None,
+            },
+        ];
+        let own = ranges(&panels, YRange::Own);
+        // 40 dB apart, each 3 dB around its own curves.
+        assert!(((own[0].1 - own[1].1) - 40.0).abs() < 1e-9, "{own:?}");
+        let shared = ranges(&panels, YRange::Shared);
+        assert_eq!(shared[0], shared[1]);
+        assert_eq!(shared[0], (own[1].0, own[0].1));
+    }
+
+    #[test]
     fn svg_has_text_without_a_font() {
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("s.svg");
@@ -213,7 +274,7 @@ mod tests {
             },
         ];
         // No font was registered under this family by this path: SVG must not need one.
-        render(&path, Format::Svg, &panels, true).expect("svg");
+        render(&path, Format::Svg, &panels, YRange::Own, true).expect("svg");
         let svg = std::fs::read_to_string(&path).expect("read");
         assert!(
             svg.contains(">\ngravel\n</text>") && svg.contains(">\nsnow\n</text>"),
@@ -238,6 +299,7 @@ mod tests {
                 fit: &fit,
                 physical: None,
             }],
+            YRange::Own,
             false,
         )
         .expect("png");
@@ -257,6 +319,7 @@ mod tests {
                 fit: &fit,
                 physical: None,
             }],
+            YRange::Own,
         )
         .expect("png");
         let expected = if font().expect("font lookup").is_some() {
@@ -281,6 +344,7 @@ mod tests {
                 fit: &fit,
                 physical: None,
             }],
+            YRange::Own,
             true,
         )
         .expect_err("one point");

@@ -87,6 +87,7 @@ pub struct EqualizeArgs {
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
     /// Also draw every pass against flat (.svg or .png).
+    /// Default: no figure.
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
     #[command(flatten)]

@@ -22,12 +22,14 @@ pub struct LimbArgs {
     #[arg(long, value_name = "FILE", num_args = 1.., required = true)]
     pub sweeps: Vec<PathBuf>,
     /// The unloaded device's response, measured the same way, to divide by.
+    /// Default: none, for sweeps measured through the equalizer.
     #[arg(long, value_name = "FILE")]
     pub unloaded: Option<PathBuf>,
     /// Where to write the limb model (JSON).
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
     /// Also draw the model against the measurement (.svg or .png).
+    /// Default: no figure.
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
 }

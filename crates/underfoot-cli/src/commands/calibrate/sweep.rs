@@ -56,6 +56,7 @@ pub struct SweepSettings {
     pub seed: u64,
     /// Simulated device only: a user standing on it, `table1` (Table 1's mean user),
     /// `B3K3,K2M2,B2M2`, or a limb file.
+    /// Default: nobody on it.
     #[arg(long, value_name = "USER", value_parser = parse_user)]
     pub load: Option<UserArg>,
     #[command(flatten)]
@@ -101,12 +102,14 @@ pub struct SweepArgs {
     #[arg(long = "device-under-test", visible_alias = "dut", default_value = "simulated", value_name = "DEVICE", value_parser = parse_device)]
     pub device: DeviceArg,
     /// Measure through this equalizer (a `calibrate equalize` file).
+    /// Default: the device alone.
     #[arg(long, value_name = "FILE")]
     pub eq: Option<PathBuf>,
     /// Where to write the measured response (JSON).
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
     /// Also draw the response (.svg or .png).
+    /// Default: no figure.
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
     #[command(flatten)]

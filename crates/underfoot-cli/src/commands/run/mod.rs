@@ -50,6 +50,7 @@ pub struct RunArgs {
     input: Option<InputArg>,
     /// A prosthetic-skin interface (prosthetic.toml): insole force in, servo targets out,
     /// one vibration channel per [[channel]]. Replaces --input.
+    /// Default: none.
     #[arg(long, value_name = "FILE.toml")]
     interface: Option<PathBuf>,
     /// Where vibration goes: audio[:DEVICE], wav:FILE.wav, or null (paced in real time,
@@ -80,6 +81,7 @@ pub struct RunArgs {
     )]
     sensor_latency: f64,
     /// Stop after this many seconds (at most 30 days).
+    /// Default: run until stopped.
     #[arg(long, visible_alias = "seconds", value_name = "SECONDS", value_parser = parse_duration)]
     duration: Option<f64>,
     /// Serial line speed.
@@ -98,6 +100,7 @@ pub struct RunArgs {
     newtons_per_count: f32,
     /// Per-sensor calibration of the serial sensors, from `underfoot calibrate sensors`
     /// (one curve per sensor of the frame, in frame order); replaces --newtons-per-count.
+    /// Default: none (--newtons-per-count for every sensor).
     #[arg(long, value_name = "FILE.json")]
     sensors: Option<PathBuf>,
     /// When the serial port (or the interface's) is lost, exit with an error instead of
@@ -118,6 +121,7 @@ pub struct RunArgs {
     /// elapsed time, per channel force (N), strikes, peak (dBFS, null for silence) and
     /// limited samples; input events, rejects, losses; late events, non-finite samples,
     /// watchdog fades.
+    /// Default: none.
     #[arg(long = "status-json", value_name = "FILE|-")]
     status_json: Option<PathBuf>,
     /// Adapt the equalizer (--eq) while the user walks: an accelerometer on an audio input
@@ -137,6 +141,7 @@ pub struct RunArgs {
     adapt_channel: Option<u16>,
     /// Save the adapted equalizer when the session ends (the format of --eq, to start
     /// from next time).
+    /// Default: not saved.
     #[arg(long = "adapt-out", value_name = "FILE.json", requires = "adapt")]
     adapt_out: Option<PathBuf>,
     /// Record the session into the folder DIR (new, or empty): manifest.json, every force
@@ -145,6 +150,7 @@ pub struct RunArgs {
     /// written as it goes. With it, each line typed on standard input is a marker (plain
     /// text, or a JSON object {"text", "trial", "participant", "condition"}); on a
     /// terminal an empty line stops. `underfoot session show DIR` reads it.
+    /// Default: not recorded.
     #[arg(long, value_name = "DIR")]
     record: Option<PathBuf>,
     /// The most the record may hold, in MiB; at the bound the force, status and output
