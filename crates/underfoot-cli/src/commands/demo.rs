@@ -29,6 +29,7 @@ use underfoot::engine::offline::{render, walk_across};
 use underfoot::force::gait::GaitConfig;
 use underfoot::io::wav::{WavFormat, WavSink};
 use underfoot::material::evaluate::{StepComparison, compare_steps, segment_lsd};
+use underfoot::synthesis::SynthModel;
 use underfoot::units::{Decibels, Seconds};
 
 use crate::commands::synth::SynthArgs;
@@ -309,10 +310,17 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     let omitted = spectrogram_out.write_with(|p| {
         plot::draw_spectrogram(
             p,
-            &format!("A walk across {which}"),
+            &format!(
+                "A walk across {which}, played by {}",
+                match args.synth.model {
+                    SynthModel::Iir => "the fitted filters",
+                    SynthModel::Physical => "the physical models",
+                }
+            ),
             &out.samples,
             rate.0,
             top,
+            walk_band(&setup.library),
             &labels,
         )
     })?;
@@ -367,6 +375,17 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
 }
 
 /// The spectrogram's top: the highest band edge of the materials, plus a little.
+/// The band the walk's materials were fitted over: from the lowest lower edge to the
+/// highest upper one.
+fn walk_band(library: &underfoot::material::Library) -> (f64, f64) {
+    library
+        .materials
+        .iter()
+        .fold((f64::INFINITY, 0.0), |(lo, hi), m| {
+            (lo.min(m.band_hz.lo.0), hi.max(m.band_hz.hi.0))
+        })
+}
+
 fn walk_top(library: &underfoot::material::Library) -> f64 {
     library
         .materials

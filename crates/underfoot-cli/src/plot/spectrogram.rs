@@ -14,7 +14,7 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 use underfoot::signal::spectrum::Spectrogram;
 use underfoot::units::{Decibels, Hz, SampleRate};
 
-use super::axes::time_decimals;
+use super::axes::{log_grid, time_decimals};
 use super::font::FAMILY;
 use super::{Figure, Format, Omitted, TITLE_HEIGHT, draw, ink, write_figure};
 
@@ -90,9 +90,13 @@ fn stft(
     )?)
 }
 
-/// Draws the spectrogram of `samples` (mono, at `rate_hz`) from 0 to `max_hz`, with the
+/// Draws the spectrogram of `samples` (mono, at `rate_hz`) up to `max_hz`, with the
 /// segments marked (vertical lines at their starts, labels along the top), into `path`
 /// (.svg or .png).
+///
+/// The frequency axis is logarithmic, from an octave below `band`'s lower edge: a walk's
+/// vibration spans decades, and on a linear axis nearly all of it sat in the bottom 15%.
+/// The band's edges are marked by lines across the plot and labelled on the axis.
 ///
 /// Levels are in dB re the loudest time-frequency cell, over the 60 dB below it; a colour
 /// bar gives the scale. `max_hz` above the Nyquist frequency is lowered to it. Segments
@@ -108,6 +112,7 @@ pub fn draw_spectrogram(
     samples: &[f32],
     rate_hz: u32,
     max_hz: f64,
+    band: (f64, f64),
     segments: &[Segment<'_>],
 ) -> anyhow::Result<Omitted> {
     let input = Timeline {
@@ -115,6 +120,7 @@ pub fn draw_spectrogram(
         samples,
         rate_hz,
         max_hz,
+        band,
         segments,
     };
     draw(path, |format, show_text| {
@@ -128,6 +134,7 @@ struct Timeline<'a> {
     samples: &'a [f32],
     rate_hz: u32,
     max_hz: f64,
+    band: (f64, f64),
     segments: &'a [Segment<'a>],
 }
 
@@ -136,7 +143,10 @@ struct SpectrogramPlot<'a> {
     title: &'a str,
     spec: Spectrogram,
     duration_s: f64,
+    /// The frequency axis, `(bottom, top)`.
+    bottom_hz: f64,
     top_hz: f64,
+    band: (f64, f64),
     segments: &'a [Segment<'a>],
     show_text: bool,
     /// Cells as one bitmap (PNG) rather than rectangles (SVG).
@@ -164,6 +174,7 @@ fn render_spectrogram(
         samples,
         rate_hz,
         max_hz,
+        band,
         segments,
     } = input;
     if samples.is_empty() {
@@ -197,6 +208,14 @@ fn render_spectrogram(
         }
     }
     let top_hz = max_hz.min(f64::from(rate_hz) / 2.0);
+    if !(band.0.is_finite() && band.0 > 0.0 && band.0 < band.1 && band.0 < top_hz) {
+        bail!(
+            "{}: the band {} to {} Hz must be positive, in order and below {top_hz} Hz",
+            path.display(),
+            band.0,
+            band.1
+        );
+    }
     let cells = match format {
         Format::Svg => SVG_CELLS,
         Format::Png => PNG_CELLS,
@@ -205,7 +224,9 @@ fn render_spectrogram(
         title,
         spec: stft(samples, rate_hz, top_hz, cells)?,
         duration_s: samples.len() as f64 / f64::from(rate_hz),
+        bottom_hz: band.0 / 2.0,
         top_hz,
+        band,
         segments,
         show_text,
         raster: format == Format::Png,
@@ -218,7 +239,7 @@ fn draw_spectrogram_on<DB: DrawingBackend>(
     plot: &SpectrogramPlot<'_>,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let spec = &plot.spec;
-    let (duration_s, top_hz) = (plot.duration_s, plot.top_hz);
+    let (duration_s, bottom_hz, top_hz) = (plot.duration_s, plot.bottom_hz, plot.top_hz);
     let ink = ink(plot.show_text);
     let text = |size: f64| (FAMILY, size).into_font().color(&ink);
     root.fill(&WHITE)?;
@@ -248,7 +269,21 @@ fn draw_spectrogram_on<DB: DrawingBackend>(
     let mut chart = ChartBuilder::on(&main.margin(top, 16, 8, 18))
         .x_label_area_size(44)
         .y_label_area_size(58)
-        .build_cartesian_2d(0.0..duration_s, 0.0..top_hz)?;
+        .build_cartesian_2d(0.0..duration_s, {
+            let (bold, light) = log_grid(bottom_hz, top_hz);
+            let mut ticks = bold;
+            for edge in [plot.band.0, plot.band.1] {
+                if edge < top_hz && ticks.iter().all(|&t| (t / edge).max(edge / t) >= 1.2) {
+                    ticks.push(edge);
+                }
+            }
+            ticks.sort_by(f64::total_cmp);
+            (bottom_hz..top_hz)
+                .log_scale()
+                .with_key_points(ticks)
+                .with_light_points(light)
+        })?;
+    let ratio = top_hz / bottom_hz;
 
     let (cols, rows) = (spec.cols(), spec.rows());
     if plot.raster {
@@ -262,7 +297,7 @@ fn draw_spectrogram_on<DB: DrawingBackend>(
             .collect();
         let mut image = Vec::with_capacity(pw as usize * ph as usize * 3);
         for j in 0..ph {
-            let f = top_hz * (1.0 - (f64::from(j) + 0.5) / f64::from(ph));
+            let f = bottom_hz * ratio.powf(1.0 - (f64::from(j) + 0.5) / f64::from(ph));
             let r = spec.edges_hz.partition_point(|&e| e <= f).clamp(1, rows) - 1;
             for &c in &col_of {
                 let RGBColor(red, green, blue) = level_colour(spec.column(c)[r]);
@@ -287,10 +322,16 @@ fn draw_spectrogram_on<DB: DrawingBackend>(
                     .iter()
                     .take_while(|&&v| step(v) == level)
                     .count();
-                cells.push(Rectangle::new(
-                    [(t0, spec.edges_hz[r]), (t1, spec.edges_hz[end])],
-                    level_colour(f64::from(level) * SVG_STEP_DB).filled(),
-                ));
+                // Cells below the axis are not drawn; one across its bottom is cut there.
+                if spec.edges_hz[end] > bottom_hz {
+                    cells.push(Rectangle::new(
+                        [
+                            (t0, spec.edges_hz[r].max(bottom_hz)),
+                            (t1, spec.edges_hz[end]),
+                        ],
+                        level_colour(f64::from(level) * SVG_STEP_DB).filled(),
+                    ));
+                }
                 r = end;
             }
         }
@@ -305,7 +346,23 @@ fn draw_spectrogram_on<DB: DrawingBackend>(
     };
     for style in [BLACK.mix(0.8).stroke_width(3), WHITE.stroke_width(1)] {
         chart.draw_series(
-            starts().map(|s| PathElement::new(vec![(s.start_s, 0.0), (s.start_s, top_hz)], style)),
+            starts().map(|s| {
+                PathElement::new(vec![(s.start_s, bottom_hz), (s.start_s, top_hz)], style)
+            }),
+        )?;
+    }
+    // The band's edges, across the plot: dark under light, as the segment starts.
+    let edges = [plot.band.0, plot.band.1]
+        .into_iter()
+        .filter(|&f| f > bottom_hz && f < top_hz);
+    for style in [
+        BLACK.mix(0.5).stroke_width(2),
+        WHITE.mix(0.8).stroke_width(1),
+    ] {
+        chart.draw_series(
+            edges
+                .clone()
+                .map(|f| PathElement::new(vec![(0.0, f), (duration_s, f)], style)),
         )?;
     }
 
@@ -314,11 +371,10 @@ fn draw_spectrogram_on<DB: DrawingBackend>(
         .configure_mesh()
         .disable_mesh()
         .x_desc("time (s)")
-        .y_desc("frequency (Hz)")
+        .y_desc("frequency (Hz; lines: the band fitted)")
         .label_style(text(13.0))
         .axis_desc_style(text(14.0))
         .x_labels(12)
-        .y_labels(11)
         .x_label_formatter(&|t| format!("{t:.decimals$}"))
         .y_label_formatter(&|f| format!("{f:.0}"))
         .draw()?;
@@ -430,7 +486,8 @@ mod tests {
         let (x, segments) = two_tones();
         for name in ["s.svg", "s.png"] {
             let path = dir.path().join(name);
-            draw_spectrogram(&path, "walk", &x, 48_000, 1000.0, &segments).expect(name);
+            draw_spectrogram(&path, "walk", &x, 48_000, 1000.0, (20.0, 900.0), &segments)
+                .expect(name);
             assert!(std::fs::metadata(&path).expect(name).len() > 0, "{name}");
         }
         let svg = std::fs::read_to_string(dir.path().join("s.svg")).expect("read");
@@ -456,6 +513,7 @@ mod tests {
             samples: &samples,
             rate_hz: 48_000,
             max_hz: 1000.0,
+            band: (20.0, 900.0),
             segments: &segments,
         };
         render_spectrogram(&path, Format::Png, &input, false).expect("png");
@@ -466,22 +524,44 @@ mod tests {
     fn empty_and_bad_input_are_errors() {
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("e.svg");
-        let e = draw_spectrogram(&path, "t", &[], 48_000, 1000.0, &[]).expect_err("empty");
+        let e = draw_spectrogram(&path, "t", &[], 48_000, 1000.0, (20.0, 900.0), &[])
+            .expect_err("empty");
         assert!(e.to_string().contains("no samples"), "{e}");
         let x = [0.0, f32::NAN];
-        let e = draw_spectrogram(&path, "t", &x, 48_000, 1000.0, &[]).expect_err("NaN");
+        let e =
+            draw_spectrogram(&path, "t", &x, 48_000, 1000.0, (20.0, 900.0), &[]).expect_err("NaN");
         assert!(e.to_string().contains("sample 1 is NaN"), "{e}");
-        let e = draw_spectrogram(&path, "t", &[0.0], 0, 1000.0, &[]).expect_err("rate");
+        let e =
+            draw_spectrogram(&path, "t", &[0.0], 0, 1000.0, (20.0, 900.0), &[]).expect_err("rate");
         assert!(e.to_string().contains("0 Hz"), "{e}");
-        let e = draw_spectrogram(&path, "t", &[0.0], 48_000, 0.0, &[]).expect_err("top");
+        let e =
+            draw_spectrogram(&path, "t", &[0.0], 48_000, 0.0, (20.0, 900.0), &[]).expect_err("top");
         assert!(e.to_string().contains("top frequency"), "{e}");
+        for band in [
+            (0.0, 900.0),
+            (900.0, 20.0),
+            (2000.0, 3000.0),
+            (f64::NAN, 900.0),
+        ] {
+            let e =
+                draw_spectrogram(&path, "t", &[0.0], 48_000, 1000.0, band, &[]).expect_err("band");
+            assert!(e.to_string().contains("the band"), "{band:?}: {e}");
+        }
         let backwards = Segment {
             label: "mud",
             start_s: 2.0,
             end_s: 1.0,
         };
-        let e = draw_spectrogram(&path, "t", &[0.0], 48_000, 1000.0, &[backwards])
-            .expect_err("segment");
+        let e = draw_spectrogram(
+            &path,
+            "t",
+            &[0.0],
+            48_000,
+            1000.0,
+            (20.0, 900.0),
+            &[backwards],
+        )
+        .expect_err("segment");
         assert!(e.to_string().contains("\"mud\""), "{e}");
     }
 
@@ -493,12 +573,13 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         for name in ["z.svg", "z.png"] {
             let path = dir.path().join(name);
-            draw_spectrogram(&path, "silence", &x, 48_000, 1000.0, &[]).expect(name);
+            draw_spectrogram(&path, "silence", &x, 48_000, 1000.0, (20.0, 900.0), &[]).expect(name);
             assert!(std::fs::metadata(&path).expect(name).len() > 0, "{name}");
         }
         // One sample: a single, mostly zero-padded frame.
         let path = dir.path().join("one.png");
-        draw_spectrogram(&path, "one", &[1.0], 48_000, 1000.0, &[]).expect("one sample");
+        draw_spectrogram(&path, "one", &[1.0], 48_000, 1000.0, (20.0, 900.0), &[])
+            .expect("one sample");
     }
 
     /// Relative luminance (sRGB, ITU-R BT.709 weights).
@@ -549,7 +630,8 @@ mod tests {
         }];
         for name in ["long.svg", "long.png"] {
             let path = dir.path().join(name);
-            draw_spectrogram(&path, "noise", &x, rate, 1000.0, &segments).expect(name);
+            draw_spectrogram(&path, "noise", &x, rate, 1000.0, (20.0, 900.0), &segments)
+                .expect(name);
             let bytes = std::fs::metadata(&path).expect(name).len();
             // Noise is the worst case for merging SVG cells.
             assert!(bytes < 15_000_000, "{name}: {bytes} bytes");
