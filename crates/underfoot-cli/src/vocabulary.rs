@@ -219,17 +219,12 @@ mod tests {
         assert!(warnings.is_empty());
     }
 
-    /// Every long flag of every subcommand: (flag, command) -> first line of its help.
-    fn flags() -> BTreeMap<String, Vec<(String, String)>> {
-        fn walk(c: &clap::Command, path: &str, out: &mut BTreeMap<String, Vec<(String, String)>>) {
+    /// Calls `visit(command, argument)` for every argument of every subcommand, the
+    /// command named by its path (`calibrate sweep`; empty for the top level).
+    fn each_argument(visit: &mut dyn FnMut(&str, &clap::Arg)) {
+        fn walk(c: &clap::Command, path: &str, visit: &mut dyn FnMut(&str, &clap::Arg)) {
             for a in c.get_arguments() {
-                if let Some(long) = a.get_long() {
-                    let help = a.get_help().map(ToString::to_string).unwrap_or_default();
-                    let first = help.lines().next().unwrap_or("").to_owned();
-                    out.entry(long.to_owned())
-                        .or_default()
-                        .push((path.to_owned(), first));
-                }
+                visit(path, a);
             }
             for s in c.get_subcommands() {
                 let sub = if path.is_empty() {
@@ -237,11 +232,24 @@ mod tests {
                 } else {
                     format!("{path} {}", s.get_name())
                 };
-                walk(s, &sub, out);
+                walk(s, &sub, visit);
             }
         }
-        let mut out = BTreeMap::new();
-        walk(&crate::command_line(), "", &mut out);
+        walk(&crate::command_line(), "", visit);
+    }
+
+    /// Every long flag of every subcommand: (flag, command) -> first line of its help.
+    fn flags() -> BTreeMap<String, Vec<(String, String)>> {
+        let mut out: BTreeMap<String, Vec<(String, String)>> = BTreeMap::new();
+        each_argument(&mut |path, a| {
+            if let Some(long) = a.get_long() {
+                let help = a.get_help().map(ToString::to_string).unwrap_or_default();
+                let first = help.lines().next().unwrap_or("").to_owned();
+                out.entry(long.to_owned())
+                    .or_default()
+                    .push((path.to_owned(), first));
+            }
+        });
         out
     }
 
@@ -318,40 +326,30 @@ mod tests {
     /// default clap shows, or its help says "default" (or what leaving it out means).
     #[test]
     fn every_option_states_its_default() {
-        fn walk(c: &clap::Command, path: &str, out: &mut Vec<String>) {
-            for a in c.get_arguments() {
-                let takes_value = a.get_action().takes_values();
-                if !takes_value || a.is_required_set() || a.is_positional() {
-                    continue;
-                }
-                if !a.get_default_values().is_empty() {
-                    continue;
-                }
-                let help = [a.get_help(), a.get_long_help()]
-                    .into_iter()
-                    .flatten()
-                    .map(|h| h.to_string().to_lowercase())
-                    .collect::<Vec<_>>()
-                    .join(" ");
-                if !(help.contains("default") || help.contains("without it")) {
-                    out.push(format!(
-                        "`{path}` --{}: {}",
-                        a.get_long().unwrap_or("?"),
-                        help.lines().next().unwrap_or("")
-                    ));
-                }
-            }
-            for s in c.get_subcommands() {
-                let sub = if path.is_empty() {
-                    s.get_name().to_owned()
-                } else {
-                    format!("{path} {}", s.get_name())
-                };
-                walk(s, &sub, out);
-            }
-        }
         let mut missing = Vec::new();
-        walk(&crate::command_line(), "", &mut missing);
+        each_argument(&mut |path, a| {
+            let takes_value = a.get_action().takes_values();
+            if !takes_value
+                || a.is_required_set()
+                || a.is_positional()
+                || !a.get_default_values().is_empty()
+            {
+                return;
+            }
+            let help = [a.get_help(), a.get_long_help()]
+                .into_iter()
+                .flatten()
+                .map(|h| h.to_string().to_lowercase())
+                .collect::<Vec<_>>()
+                .join(" ");
+            if !(help.contains("default") || help.contains("without it")) {
+                missing.push(format!(
+                    "`{path}` --{}: {}",
+                    a.get_long().unwrap_or("?"),
+                    help.lines().next().unwrap_or("")
+                ));
+            }
+        });
         assert!(
             missing.is_empty(),
             "{} options do not say what leaving them out does:\n{}",

@@ -322,47 +322,29 @@ fn render_prepares_only_the_materials_it_plays() {
     let path = dir.path().join("lib.json");
     fs::write(&path, lib.to_json()).unwrap();
     let out = dir.path().join("gravel.wav");
-    let o = run(&[
-        "render",
-        "--library",
-        s(&path),
-        "--material",
-        "gravel",
-        "--model",
-        "physical",
-        "--gait",
-        "steps=2",
-        "--out",
-        s(&out),
-    ]);
-    assert_ok(&o);
+    let render = |material: &str, model: &str| {
+        run(&[
+            "render",
+            "--library",
+            s(&path),
+            "--material",
+            material,
+            "--model",
+            model,
+            "--gait",
+            "steps=2",
+            "--out",
+            s(&out),
+        ])
+    };
+    assert_ok(&render("gravel", "physical"));
     // Asked for, it is refused by name; a name the library lacks is refused with the
     // library's names.
-    let o = run(&[
-        "render",
-        "--library",
-        s(&path),
-        "--material",
-        "no-physical",
-        "--model",
-        "physical",
-        "--gait",
-        "steps=2",
-        "--out",
-        s(&out),
-    ]);
-    assert!(assert_error(&o).contains("\"no-physical\" has no physical model"));
-    let o = run(&[
-        "render",
-        "--library",
-        s(&path),
-        "--material",
-        "nope",
-        "--gait",
-        "steps=2",
-        "--out",
-        s(&out),
-    ]);
+    assert!(
+        assert_error(&render("no-physical", "physical"))
+            .contains("\"no-physical\" has no physical model")
+    );
+    let o = render("nope", "iir");
     let text = assert_error(&o);
     assert!(
         text.contains("no material named \"nope\"") && text.contains("gravel"),

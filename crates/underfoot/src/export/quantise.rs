@@ -196,26 +196,37 @@ pub fn prepare(model: &MaterialModel, config: &ExportConfig) -> Result<Exported,
     let q15_check = check(
         "Q15",
         q15.iter().map(Q15Section::coefficients).collect(),
-        impulse_responses(n, &config.levels, |level| {
-            let q15 = &q15;
-            let x = to_q15(level.to_amplitude() as f32);
-            let unit = f64::from(x) * 65536.0;
-            let mut states = vec![Q15State::default(); q15.len()];
-            move |first| f64::from(q15_cascade(q15, &mut states, if first { x } else { 0 })) / unit
-        }),
+        config
+            .levels
+            .iter()
+            .map(|&level| {
+                let x = to_q15(level.to_amplitude() as f32);
+                let unit = f64::from(x) * 65536.0;
+                let mut states = vec![Q15State::default(); q15.len()];
+                let ir = impulse_response(n, |first| {
+                    f64::from(q15_cascade(&q15, &mut states, if first { x } else { 0 })) / unit
+                });
+                (level, ir)
+            })
+            .collect(),
         config.q15,
     )?;
     let q31_check = check(
         "Q31",
         q31.iter().map(Q31Section::coefficients).collect(),
-        impulse_responses(n, &config.levels, |level| {
-            let q31 = &q31;
-            let x = to_q31(level.to_amplitude());
-            let mut states = vec![Q31State::default(); q31.len()];
-            move |first| {
-                f64::from(q31_cascade(q31, &mut states, if first { x } else { 0 })) / f64::from(x)
-            }
-        }),
+        config
+            .levels
+            .iter()
+            .map(|&level| {
+                let x = to_q31(level.to_amplitude());
+                let mut states = vec![Q31State::default(); q31.len()];
+                let ir = impulse_response(n, |first| {
+                    f64::from(q31_cascade(&q31, &mut states, if first { x } else { 0 }))
+                        / f64::from(x)
+                });
+                (level, ir)
+            })
+            .collect(),
         config.q31,
     )?;
     // Floating point scales with the level (up to its own rounding, 2^-24 relative):
@@ -291,27 +302,6 @@ pub(super) fn limit_decay(sos: &Sos, rate: SampleRate, longest: Seconds) -> Sos 
 /// the impulse.
 fn impulse_response(n: usize, mut tick: impl FnMut(bool) -> f64) -> Vec<f64> {
     (0..n).map(|i| tick(i == 0)).collect()
-}
-
-/// `n` samples of the impulse response at each level; `start(level)` makes the loop for
-/// one level, whose `tick(first)` runs one sample, `first` for the impulse.
-///
-/// The levels' loops run side by side, one sample of each in turn: each loop is one long
-/// chain of dependent multiplications, and interleaving independent chains lets the
-/// processor overlap them (the export's time is mostly these loops and their DTFTs).
-fn impulse_responses<T: FnMut(bool) -> f64>(
-    n: usize,
-    levels: &[Decibels],
-    mut start: impl FnMut(Decibels) -> T,
-) -> Vec<(Decibels, Vec<f64>)> {
-    let mut loops: Vec<T> = levels.iter().map(|&l| start(l)).collect();
-    let mut irs: Vec<Vec<f64>> = levels.iter().map(|_| Vec::with_capacity(n)).collect();
-    for i in 0..n {
-        for (tick, ir) in loops.iter_mut().zip(&mut irs) {
-            ir.push(tick(i == 0));
-        }
-    }
-    levels.iter().copied().zip(irs).collect()
 }
 
 /// Samples of impulse response the check computes: until the slowest pole has decayed

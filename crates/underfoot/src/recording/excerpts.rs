@@ -43,10 +43,12 @@
 //! file (a pipe cannot be read twice; its size is capped as any recording's).
 
 use super::decode::{Sink, decode_source, riff_fault_at, riff_starts};
-use super::{MAX_SAMPLE, Recording, RecordingError, SILENCE_TOLERANCE, check, hex};
+use super::{
+    MAX_SAMPLE, Recording, RecordingError, SILENCE_TOLERANCE, check, file_name, hex, is_csv,
+};
 use crate::document::FileError;
 use crate::limits::{MAX_RECORDING_BYTES, reads};
-use crate::recording::strikes::OnsetConfig;
+use crate::recording::strikes::{OnsetConfig, crossings};
 use crate::units::{SampleRate, Seconds};
 use sha2::{Digest, Sha256};
 use std::cell::RefCell;
@@ -112,9 +114,6 @@ pub fn read_for_analysis(
     path: &Path,
     csv: Option<&super::CsvSpec>,
 ) -> Result<Vec<Recording>, RecordingError> {
-    let is_csv = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
     let file_error = |action: &'static str, source: std::io::Error| {
         RecordingError::File(FileError {
             path: path.to_path_buf(),
@@ -123,7 +122,7 @@ pub fn read_for_analysis(
         })
     };
     let meta = std::fs::metadata(path).map_err(|e| file_error("reading", e))?;
-    if is_csv || !meta.is_file() {
+    if is_csv(path) || !meta.is_file() {
         return super::read(path, csv).map(|r| vec![r]);
     }
     let mut file = File::open(path).map_err(|e| file_error("reading", e))?;
@@ -160,10 +159,7 @@ pub fn read_for_analysis(
             });
         }
     }
-    let name = path.file_name().map_or_else(
-        || path.to_string_lossy().into_owned(),
-        |n| n.to_string_lossy().into_owned(),
-    );
+    let name = file_name(path);
 
     let mut probe = Probe::default();
     file.seek(SeekFrom::Start(0))
@@ -390,32 +386,12 @@ impl Probe {
 }
 
 /// The blocks where strikes are detected: [`find_onsets`](super::strikes::find_onsets)'
-/// rule on the blocks' RMS.
+/// detection ([`crossings`]) on the blocks' RMS, with its default settings.
 fn strike_blocks(energy: &[f64], rate: SampleRate, block: usize) -> Vec<usize> {
     let cfg = OnsetConfig::default();
     let rms: Vec<f64> = energy.iter().map(|e| e.sqrt()).collect();
-    let peak = rms.iter().copied().fold(0.0, f64::max);
-    let sigma = crate::numeric::percentile(&rms, cfg.noise_percentile).unwrap_or(0.0);
-    let db = |d: f64| 10f64.powf(d / 20.0);
-    let threshold = (peak * db(-cfg.threshold_below_peak.0)).max(sigma * db(cfg.noise_margin.0));
-    if !(peak > 0.0 && threshold <= peak) {
-        return Vec::new();
-    }
-    let rearm = threshold * db(-cfg.hysteresis.0);
     let min_gap = rate.samples_in(cfg.min_interval).div_ceil(block);
-    let mut strikes: Vec<usize> = Vec::new();
-    let mut armed = true;
-    for (k, &e) in rms.iter().enumerate() {
-        if armed && e >= threshold {
-            armed = false;
-            if strikes.last().is_none_or(|&s| k - s >= min_gap) {
-                strikes.push(k);
-            }
-        } else if !armed && e < rearm {
-            armed = true;
-        }
-    }
-    strikes
+    crossings(&rms, &cfg, min_gap).map_or_else(Vec::new, |(kept, _)| kept)
 }
 
 /// The excerpts, in frames; see the [module docs](self) (step 2).

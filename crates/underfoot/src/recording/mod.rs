@@ -119,11 +119,7 @@ pub fn read(path: &Path, csv: Option<&CsvSpec>) -> Result<Recording, RecordingEr
             })
         }
     })?;
-    let name = path.file_name().map_or_else(
-        || path.to_string_lossy().into_owned(),
-        |n| n.to_string_lossy().into_owned(),
-    );
-    decode_and_check(path, name, &bytes, csv)
+    decode_and_check(path, file_name(path), &bytes, csv)
 }
 
 /// Reads a recording held in memory, as [`read`] does a file named `name`.
@@ -138,10 +134,22 @@ pub fn read_bytes(
     csv: Option<&CsvSpec>,
 ) -> Result<Recording, RecordingError> {
     let file = PathBuf::from(name);
-    let short = file
-        .file_name()
-        .map_or_else(|| name.to_owned(), |n| n.to_string_lossy().into_owned());
-    decode_and_check(&file, short, bytes, csv)
+    decode_and_check(&file, file_name(&file), bytes, csv)
+}
+
+/// Whether `path` names a data-logger CSV: its extension is `.csv`, in any case.
+fn is_csv(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
+}
+
+/// A recording's name: its file name without directories (the whole path when it has
+/// none, such as `..`).
+fn file_name(path: &Path) -> String {
+    path.file_name().map_or_else(
+        || path.to_string_lossy().into_owned(),
+        |n| n.to_string_lossy().into_owned(),
+    )
 }
 
 fn decode_and_check(
@@ -150,10 +158,7 @@ fn decode_and_check(
     bytes: &[u8],
     csv: Option<&CsvSpec>,
 ) -> Result<Recording, RecordingError> {
-    let is_csv = file
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
-    let (rate, samples) = if is_csv {
+    let (rate, samples) = if is_csv(file) {
         let spec = csv.ok_or_else(|| RecordingError::CsvNeedsSpec {
             file: file.to_path_buf(),
         })?;

@@ -108,16 +108,10 @@ pub fn find_onsets(x: &[f64], rate: SampleRate, cfg: &OnsetConfig) -> Vec<usize>
     let samples = |t: Seconds| rate.samples_in(t);
     let w = samples(cfg.envelope_window).max(1);
     let env = centred_rms(x, w, Edges::Clipped);
-    let peak_env = env.iter().copied().fold(0.0, f64::max);
-    if peak_env <= 0.0 {
+    let min_gap = samples(cfg.min_interval);
+    let Some((kept, sigma)) = crossings(&env, cfg, min_gap) else {
         return Vec::new();
-    }
-    let sigma = crate::numeric::percentile(&env, cfg.noise_percentile).unwrap_or(0.0);
-    let threshold = (peak_env * down(cfg.threshold_below_peak)).max(sigma * up(cfg.noise_margin));
-    if threshold > peak_env {
-        return Vec::new();
-    }
-    let rearm = threshold * down(cfg.hysteresis);
+    };
     let peak_abs = x.iter().fold(0.0, |m: f64, v| m.max(v.abs()));
     let rise = (sigma * up(cfg.rise_margin)).max(peak_abs * down(cfg.rise_floor_below_peak));
     let refine = Refine {
@@ -127,27 +121,54 @@ pub fn find_onsets(x: &[f64], rate: SampleRate, cfg: &OnsetConfig) -> Vec<usize>
         quiet_run: samples(cfg.quiet_run).max(1),
         max_back: samples(cfg.max_rise),
     };
-    let min_gap = samples(cfg.min_interval);
+    kept.iter()
+        .enumerate()
+        .map(|(i, &n)| {
+            let window_end = (n + w - w / 2).min(x.len()) - 1;
+            // Never past the strike before's crossing.
+            let lo = i.checked_sub(1).map_or(0, |p| kept[p] + 1);
+            refine.onset(window_end, lo)
+        })
+        .collect()
+}
 
-    let mut onsets = Vec::new();
-    let mut last: Option<usize> = None;
+/// Steps 2 and 3 of the module docs on an envelope `env`: where each strike's envelope
+/// crosses the threshold (a crossing within `min_gap` of the last one kept is the same
+/// strike), with the noise floor `sigma`. `None` when nothing stands clearly above the
+/// noise.
+///
+/// [`find_onsets`] runs it on the moving RMS; a long recording's first pass
+/// ([`super::excerpts`]) on the RMS of 5 ms blocks, with `min_gap` in blocks.
+pub(crate) fn crossings(
+    env: &[f64],
+    cfg: &OnsetConfig,
+    min_gap: usize,
+) -> Option<(Vec<usize>, f64)> {
+    let peak_env = env.iter().copied().fold(0.0, f64::max);
+    if peak_env <= 0.0 {
+        return None;
+    }
+    let sigma = crate::numeric::percentile(env, cfg.noise_percentile).unwrap_or(0.0);
+    let threshold = (peak_env * down(cfg.threshold_below_peak)).max(sigma * up(cfg.noise_margin));
+    if threshold > peak_env {
+        return None;
+    }
+    let rearm = threshold * down(cfg.hysteresis);
+    let mut kept: Vec<usize> = Vec::new();
     let mut armed = true;
     for (n, &e) in env.iter().enumerate() {
         if armed {
             if e >= threshold {
                 armed = false;
-                if last.is_none_or(|c| n - c >= min_gap) {
-                    let window_end = (n + w - w / 2).min(x.len()) - 1;
-                    let lo = last.map_or(0, |c| c + 1);
-                    onsets.push(refine.onset(window_end, lo));
-                    last = Some(n);
+                if kept.last().is_none_or(|&c| n - c >= min_gap) {
+                    kept.push(n);
                 }
             }
         } else if e < rearm {
             armed = true;
         }
     }
-    onsets
+    Some((kept, sigma))
 }
 
 fn up(db: Decibels) -> f64 {
