@@ -42,6 +42,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use clap::Args;
 use serde::Serialize;
+use underfoot::analysis::measure_each_file;
 use underfoot::atomic_file::OutputFile;
 use underfoot::material::build::{BuildConfig, build_material};
 use underfoot::material::library::validate_name;
@@ -51,7 +52,7 @@ use underfoot::synthesis::SynthModel;
 use underfoot::units::Hz;
 
 use crate::output::emit;
-use crate::plot::{self, Omitted, Panel};
+use crate::plot::{self, Panel};
 use crate::report::TimeScore;
 use crate::steps::{TimeRow, render_and_compare, time_table};
 
@@ -272,27 +273,24 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
         ))?;
         if let Some(out) = plot_outs.get(i) {
             let path = out.path();
+            let each = measure_each_file(&recordings, &cfg.analysis, &grid);
             let title = format!(
                 "{name}: IIR LSD {:.2} dB, physical LSD {:.2} dB (held-out render)",
                 row.iir.lsd_db, row.physical.held_out_lsd_db
             );
-            let omitted = out.write_with(|p| {
+            let drawn = out.write_with(|p| {
                 plot::draw_spectra(
                     p,
                     &[Panel {
                         title,
                         fit: &model.fit,
                         physical: Some(&curve),
+                        recordings: &each,
                     }],
                     plot::YRange::Own,
                 )
             })?;
-            if omitted == Omitted::Text {
-                eprintln!(
-                    "underfoot: warning: no font found, {} has no text (set UNDERFOOT_FONT to a .ttf file, or use --plot-format svg)",
-                    path.display()
-                );
-            }
+            drawn.report(path);
         }
         rows.push(row);
         in_time.push((model, iir, physical_steps));

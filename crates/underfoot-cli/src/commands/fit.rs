@@ -17,8 +17,8 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use underfoot::analysis::SavgolSetting;
 use underfoot::analysis::{MAX_ANALYSIS_RATE, MIN_ANALYSIS_RATE};
+use underfoot::analysis::{SavgolSetting, measure_each_file};
 use underfoot::atomic_file::OutputFile;
 use underfoot::fit::{MAX_FILTER_ORDER, OrderChoice};
 use underfoot::io::spec::{self, SpecError};
@@ -30,10 +30,10 @@ use underfoot::material::library::validate_name;
 use underfoot::material::quality::{Disagreement, HeldOut, QualityError, leave_one_out};
 use underfoot::recording::{self, CsvSpec};
 use underfoot::synthesis::SynthModel;
-use underfoot::units::{Band, Decibels, SampleRate};
+use underfoot::units::{Band, Decibels, Hz, SampleRate};
 
 use crate::output::emit;
-use crate::plot::{self, Omitted, Panel};
+use crate::plot::{self, Panel};
 use crate::report::{
     FitReport, FitReportEntry, LeaveOneOutReport, RecordingFigure, RenderedSteps, TimeScore,
     leave_one_out_table,
@@ -523,29 +523,37 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
         out.write(json.as_bytes()).with_context(saved)?;
     }
     if let (Some(path), Some(out)) = (&args.plot, &plot_out) {
-        let title = format!(
-            "{}: order {}, NRMSE {:.4}, LSD {:.2} dB",
-            model.name, model.order, model.fit.nrmse, model.fit.lsd_db
-        );
-        let omitted = out
+        // The physical model as calibrated: its calibration render's spectrum, the one
+        // its printed figures are of.
+        let physical = model.physical.as_ref().map(|p| &p.record);
+        let title = match physical {
+            Some(p) => format!(
+                "{}: IIR order {}, LSD {:.2} dB; physical LSD {:.2} dB",
+                model.name, model.order, model.fit.lsd_db, p.lsd_db
+            ),
+            None => format!(
+                "{}: order {}, NRMSE {:.4}, LSD {:.2} dB",
+                model.name, model.order, model.fit.nrmse, model.fit.lsd_db
+            ),
+        };
+        let grid: Vec<Hz> = model.fit.grid_hz.iter().map(|&f| Hz(f)).collect();
+        let each = measure_each_file(&recordings, &cfg.analysis, &grid);
+        let drawn = out
             .write_with(|p| {
                 plot::draw_spectra(
                     p,
                     &[Panel {
                         title,
                         fit: &model.fit,
-                        physical: None,
+                        physical: physical.map(|p| &p.model[..]),
+                        // One file is its own mean: nothing to draw behind it.
+                        recordings: if each.len() > 1 { &each } else { &[] },
                     }],
                     plot::YRange::Own,
                 )
             })
             .with_context(saved)?;
-        if omitted == Omitted::Text {
-            eprintln!(
-                "underfoot: warning: no font found, {} has no text (set UNDERFOOT_FONT to a .ttf file, or plot to .svg)",
-                path.display()
-            );
-        }
+        drawn.report(path);
     }
     Ok(())
 }

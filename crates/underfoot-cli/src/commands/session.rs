@@ -71,12 +71,7 @@ fn show(args: &ShowArgs) -> anyhow::Result<()> {
     emit(&summary(&record, output.as_ref()))?;
     if let Some(out) = plot_out {
         let timeline = timeline(&record, output.as_ref());
-        let omitted = plot::draw_timeline(out.path(), &timeline)?;
-        if omitted == plot::Omitted::Text {
-            eprintln!(
-                "underfoot: no font found for PNG text; the timeline has no labels (use .svg)"
-            );
-        }
+        plot::draw_timeline(out.path(), &timeline)?.report(out.path());
         eprintln!("underfoot: wrote {}", out.path().display());
     }
     Ok(())

@@ -24,6 +24,47 @@ pub(super) fn text_width(text: &str, size: f64) -> i32 {
 
 /// The size of a panel title's text, pixels.
 pub(super) const TITLE_FONT_PX: f64 = 17.0;
+/// The smallest a title is shrunk to before it is cut short, pixels.
+const MIN_TITLE_FONT_PX: f64 = 11.0;
+
+/// A title made to fit its room: at [`TITLE_FONT_PX`] when it fits, else smaller (down
+/// to [`MIN_TITLE_FONT_PX`]), else cut short with an ellipsis. A 64-character material
+/// name in `compare`'s title would otherwise run off a 720-pixel panel.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct FittedTitle {
+    pub text: String,
+    pub size: f64,
+}
+
+impl FittedTitle {
+    pub fn new(title: &str, room_px: i32) -> Self {
+        let chars = title.chars().count().max(1) as f64;
+        let room = f64::from(room_px.max(0));
+        let size = (room / (0.6 * chars)).floor().min(TITLE_FONT_PX);
+        if size >= MIN_TITLE_FONT_PX {
+            return Self {
+                text: title.to_owned(),
+                size,
+            };
+        }
+        let keep = ((room / (0.6 * MIN_TITLE_FONT_PX)) as usize).saturating_sub(1);
+        let text = title.chars().take(keep).chain(['…']).collect();
+        Self {
+            text,
+            size: MIN_TITLE_FONT_PX,
+        }
+    }
+
+    /// Where the title ends when drawn from x = 12.
+    pub fn end(&self) -> i32 {
+        12 + text_width(&self.text, self.size)
+    }
+}
+
+/// The room a panel `width` pixels wide gives its title.
+pub(super) fn title_room(width: u32) -> i32 {
+    width as i32 - 24
+}
 /// The size of a legend's labels, pixels.
 const LEGEND_FONT_PX: f64 = 13.0;
 /// The height of each legend row below the title row, pixels.
@@ -100,8 +141,8 @@ pub(super) fn place_legend(
     LegendPlacement { origins, drop }
 }
 
-/// Draws a panel's title at the left of its top row and its legend where `placement`
-/// put it.
+/// Draws a panel's title at the left of its top row (made to fit, see [`FittedTitle`])
+/// and its legend where `placement` put it.
 pub(super) fn draw_title_and_legend<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     title: &str,
@@ -115,10 +156,12 @@ pub(super) fn draw_title_and_legend<DB: DrawingBackend>(
             .color(&ink)
             .pos(Pos::new(HPos::Left, VPos::Center))
     };
+    let (w, _) = area.dim_in_pixel();
+    let title = FittedTitle::new(title, title_room(w));
     area.draw(&Text::new(
-        title.to_string(),
+        title.text,
         (12, (super::TITLE_HEIGHT / 2) as i32),
-        text(TITLE_FONT_PX),
+        text(title.size),
     ))?;
     for (entry, &(x, y)) in entries.iter().zip(&placement.origins) {
         area.draw(&PathElement::new(
@@ -248,6 +291,20 @@ pub(super) fn magnitude_chart<'a, DB: DrawingBackend>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_title_shrinks_to_fit_then_is_cut_short() {
+        let short = FittedTitle::new("gravel", 696);
+        assert_eq!((short.text.as_str(), short.size), ("gravel", TITLE_FONT_PX));
+        let long = "x".repeat(80);
+        let shrunk = FittedTitle::new(&long, 696);
+        assert!(shrunk.size < TITLE_FONT_PX && shrunk.size >= MIN_TITLE_FONT_PX);
+        assert!(shrunk.end() <= 12 + 696, "{shrunk:?}");
+        let longer = "y".repeat(200);
+        let cut = FittedTitle::new(&longer, 696);
+        assert_eq!(cut.size, MIN_TITLE_FONT_PX);
+        assert!(cut.text.ends_with('…') && cut.end() <= 12 + 696, "{cut:?}");
+    }
 
     #[test]
     fn a_bands_axis_is_labelled_at_its_edges_unless_a_label_is_close() {

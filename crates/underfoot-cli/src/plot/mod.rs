@@ -13,6 +13,7 @@
 //! | file | what it draws |
 //! |---|---|
 //! | `font.rs` | finding and registering the font PNG text needs |
+//! | `layout.rs` | the layout check every figure passes before it is written: texts that overlap or run off the figure, empty axes |
 //! | `axes.rs` | the log-frequency magnitude frame shared by spectra and responses; axis labels; a panel's title and legend, placed so they never overlap |
 //! | `spectra.rs` | [`draw_spectra`]: measured against model, a panel per material |
 //! | `spectrogram.rs` | [`draw_spectrogram`]: a signal's spectrogram with its segments and colour bar |
@@ -22,6 +23,7 @@
 
 mod axes;
 mod font;
+mod layout;
 mod responses;
 mod spectra;
 mod spectrogram;
@@ -71,6 +73,33 @@ pub enum Omitted {
     Text,
 }
 
+/// A written figure: what it could not include, and what its layout check found.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[must_use = "a figure's omissions and layout problems are for the user to hear"]
+pub struct Drawn {
+    pub omitted: Omitted,
+    /// Texts that overlap or run off the figure, empty axes: one sentence each (see
+    /// `layout`). Empty for every figure the tests draw; a problem here is a bug in the
+    /// figure's layout, reported rather than fatal because the figure still holds its
+    /// data.
+    pub problems: Vec<String>,
+}
+
+impl Drawn {
+    /// Says on stderr what the figure written to `path` lacks, if anything.
+    pub fn report(&self, path: &Path) {
+        if self.omitted == Omitted::Text {
+            eprintln!(
+                "underfoot: warning: no font found, so {} has no text (set UNDERFOOT_FONT to a .ttf file, or plot to .svg)",
+                path.display()
+            );
+        }
+        for problem in &self.problems {
+            eprintln!("underfoot: warning: figure {}: {problem}", path.display());
+        }
+    }
+}
+
 const PANEL_SIZE: (u32, u32) = (720, 420);
 const TITLE_HEIGHT: u32 = 34;
 /// Magnitudes more than this far below the top of a panel are drawn at its floor, so
@@ -84,33 +113,39 @@ trait Figure {
         &self,
         root: &DrawingArea<DB, Shift>,
     ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>>;
+
+    /// The ranges of the figure's axes, for the layout check.
+    fn axes(&self) -> Vec<layout::AxisSpan>;
 }
 
 /// Draws into `path` in the format its extension names: `render(format, show_text)`
 /// checks its input and draws, with text only when it can be drawn (always in SVG; in PNG
-/// only with a font). Says whether the text had to be left out.
+/// only with a font), and returns its layout's problems. Says whether the text had to be
+/// left out.
 fn draw(
     path: &Path,
-    render: impl FnOnce(Format, bool) -> anyhow::Result<()>,
-) -> anyhow::Result<Omitted> {
+    render: impl FnOnce(Format, bool) -> anyhow::Result<Vec<String>>,
+) -> anyhow::Result<Drawn> {
     let format = Format::of(path)?;
     let show_text = format == Format::Svg || font::font()?.is_some();
-    render(format, show_text)?;
-    Ok(if show_text {
+    let problems = render(format, show_text)?;
+    let omitted = if show_text {
         Omitted::Nothing
     } else {
         Omitted::Text
-    })
+    };
+    Ok(Drawn { omitted, problems })
 }
 
 /// Draws `figure`, `size` pixels, into `path` on the backend of `format`, and writes the
-/// file.
+/// file; returns what the layout check found.
 fn write_figure(
     path: &Path,
     format: Format,
     size: (u32, u32),
     figure: &impl Figure,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Vec<String>> {
+    let problems = layout::Layout::of(figure, size).problems();
     fn on<DB: DrawingBackend>(
         root: &DrawingArea<DB, Shift>,
         figure: &impl Figure,
@@ -133,7 +168,8 @@ fn write_figure(
     };
     drawn
         .map_err(|e| anyhow::anyhow!("drawing {}: {e}", path.display()))
-        .with_context(|| format!("writing plot {}", path.display()))
+        .with_context(|| format!("writing plot {}", path.display()))?;
+    Ok(problems)
 }
 
 /// Writes 8-bit RGB pixels, row by row, as a PNG. plotters draws into the buffer; the
@@ -170,6 +206,153 @@ fn ink(show_text: bool) -> RGBAColor {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The longest name a material may have: titles built on it must still fit.
+    fn long_name() -> String {
+        "a-very-long-material-name-that-a-user-might-well-give-it-64-char".to_owned()
+    }
+
+    /// Every figure at its most crowded passes the layout check, as SVG and as PNG (with
+    /// text when the machine has a font).
+    fn assert_clean(name: &str, draw: impl Fn(&Path) -> anyhow::Result<Drawn>) {
+        let dir = tempfile::tempdir().expect("tempdir");
+        for ext in ["svg", "png"] {
+            let path = dir.path().join(format!("{name}.{ext}"));
+            let drawn = draw(&path).expect(name);
+            assert_eq!(drawn.problems, Vec::<String>::new(), "{name}.{ext}");
+        }
+    }
+
+    fn fit_record(scale: f64) -> underfoot::material::FitRecord {
+        let mut record = spectra::tests::record();
+        record.measured.iter_mut().for_each(|m| *m *= scale);
+        record.model = record.measured.iter().map(|m| m * 1.1).collect();
+        record
+    }
+
+    #[test]
+    fn crowded_spectra_pass_the_layout_check() {
+        let fits: Vec<_> = (0..11).map(|i| fit_record(0.5f64.powi(i))).collect();
+        let physical: Vec<f64> = fits[0].model.iter().map(|m| m * 0.7).collect();
+        let each: Vec<Vec<f64>> = (1..=5)
+            .map(|k| {
+                fits[0]
+                    .measured
+                    .iter()
+                    .map(|m| m * f64::from(k) / 3.0)
+                    .collect()
+            })
+            .collect();
+        let title = format!(
+            "{}: IIR LSD 0.61 dB, physical LSD 2.38 dB (held-out render)",
+            long_name()
+        );
+        let panels: Vec<Panel<'_>> = fits
+            .iter()
+            .map(|fit| Panel {
+                title: title.clone(),
+                fit,
+                physical: Some(&physical),
+                recordings: &each,
+            })
+            .collect();
+        assert_clean("one", |p| draw_spectra(p, &panels[..1], YRange::Own));
+        assert_clean("eleven", |p| draw_spectra(p, &panels, YRange::Shared));
+    }
+
+    #[test]
+    fn crowded_responses_pass_the_layout_check() {
+        let freqs: Vec<f64> = (0..64)
+            .map(|i| 40.0 * 25.6f64.powf(f64::from(i) / 63.0))
+            .collect();
+        let db: Vec<Vec<f64>> = (0..6)
+            .map(|k| {
+                freqs
+                    .iter()
+                    .map(|f| f64::from(k) * (f / 100.0).ln())
+                    .collect()
+            })
+            .collect();
+        let curves: Vec<Curve<'_>> = db
+            .iter()
+            .enumerate()
+            .map(|(k, db)| Curve {
+                label: format!("pass {k}: after equalizing, measured again"),
+                freqs_hz: &freqs,
+                db,
+            })
+            .collect();
+        let title = format!("{} against flat, pass by pass", long_name());
+        assert_clean("responses", |p| {
+            draw_responses(p, &title, "magnitude (dB re its mean in the band)", &curves)
+        });
+    }
+
+    #[test]
+    fn crowded_steps_pass_the_layout_check() {
+        let summary = steps::tests::summary(60, 1000.0);
+        let title = format!("{}: D90 262 ms recorded, 240 ms rendered", long_name());
+        let panels: Vec<StepPanel<'_>> = (0..11)
+            .map(|_| StepPanel {
+                title: title.clone(),
+                recorded: Some(&summary),
+                rendered: Some(&summary),
+            })
+            .collect();
+        assert_clean("steps", |p| draw_steps(p, &panels));
+    }
+
+    #[test]
+    fn a_crowded_spectrogram_passes_the_layout_check() {
+        let rate = 2000;
+        let x: Vec<f32> = (0..20 * rate)
+            .map(|n| (f64::from(n) * 0.3).sin() as f32)
+            .collect();
+        let name = long_name();
+        // Many short segments with long labels: the label lanes must keep them apart.
+        let segments: Vec<Segment<'_>> = (0..40)
+            .map(|i| Segment {
+                label: &name,
+                start_s: f64::from(i) * 0.5,
+                end_s: f64::from(i) * 0.5 + 0.4,
+            })
+            .collect();
+        let title = format!("A walk across {name}, played by the physical models");
+        assert_clean("walk", |p| {
+            draw_spectrogram(p, &title, &x, rate as u32, 1000.0, (20.0, 900.0), &segments)
+        });
+    }
+
+    #[test]
+    fn a_crowded_timeline_passes_the_layout_check() {
+        let channels = 16;
+        let force: Vec<Vec<(f64, f64)>> = (0..channels)
+            .map(|c| {
+                (0..200)
+                    .map(|k| (f64::from(k) * 0.05, f64::from(c * 40 + k % 50)))
+                    .collect()
+            })
+            .collect();
+        let envelope: Vec<Vec<(f64, f64)>> = (0..channels)
+            .map(|_| (0..200).map(|k| (f64::from(k) * 0.05, -40.0)).collect())
+            .collect();
+        let timeline = Timeline {
+            title: format!("session {}", long_name()),
+            force,
+            strikes: (0..20)
+                .map(|k| (f64::from(k) * 0.5, 1 + k as usize % 16))
+                .collect(),
+            envelope,
+            // Close markers with long labels.
+            markers: (0..12)
+                .map(|k| TimelineMarker {
+                    time: f64::from(k) * 0.8,
+                    label: format!("condition {k}: soft sole, gravel, trial 3"),
+                })
+                .collect(),
+        };
+        assert_clean("timeline", |p| draw_timeline(p, &timeline));
+    }
 
     #[test]
     fn extension_picks_format() {

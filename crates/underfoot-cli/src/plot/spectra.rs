@@ -1,25 +1,30 @@
 //! Spectra: a material's measured response against its model's, in dB on a
 //! log-frequency axis, one panel per material (two columns when there is more than one),
-//! drawn from each model's fit record; `compare` adds the physical model.
+//! drawn from each model's fit record; `fit` and `compare` add each recording's own
+//! spectrum (thin, grey, behind the mean that was fitted) and the physical model's.
 
 use std::path::Path;
 
 use anyhow::bail;
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use plotters::style::text_anchor::{HPos, Pos, VPos};
 use underfoot::material::FitRecord;
 
-use super::axes::magnitude_chart;
-use super::font::FAMILY;
-use super::{FLOOR_DB, Figure, Format, Omitted, PANEL_SIZE, TITLE_HEIGHT, draw, ink, write_figure};
+use super::axes::{
+    FittedTitle, LegendEntry, draw_title_and_legend, magnitude_chart, place_legend, title_room,
+};
+use super::layout::AxisSpan;
+use super::{Drawn, FLOOR_DB, Figure, Format, PANEL_SIZE, draw, ink, write_figure};
 
 /// One panel: a title and the fit record to draw.
 pub struct Panel<'a> {
     pub title: String,
     pub fit: &'a FitRecord,
-    /// A second model on the same grid (the physical model of `compare`), drawn in blue.
+    /// A second model on the same grid (the physical model), drawn in blue.
     pub physical: Option<&'a [f64]>,
+    /// Each recording's own spectrum on the same grid, drawn thin and grey behind the
+    /// mean (`fit.measured`) that was fitted; empty when there are none to show.
+    pub recordings: &'a [Vec<f64>],
 }
 
 /// The dB axis of a figure of several panels.
@@ -33,7 +38,7 @@ pub enum YRange {
 }
 
 /// Draws `panels` into `path` (two columns when there is more than one panel).
-pub fn draw_spectra(path: &Path, panels: &[Panel<'_>], y: YRange) -> anyhow::Result<Omitted> {
+pub fn draw_spectra(path: &Path, panels: &[Panel<'_>], y: YRange) -> anyhow::Result<Drawn> {
     draw(path, |format, show_text| {
         render(path, format, panels, y, show_text)
     })
@@ -47,7 +52,7 @@ fn render(
     panels: &[Panel<'_>],
     y: YRange,
     show_text: bool,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Vec<String>> {
     if panels.is_empty() {
         bail!("nothing to plot in {}", path.display());
     }
@@ -66,6 +71,11 @@ fn render(
         panels,
         grid: (rows, cols),
         ranges: ranges(panels, y),
+        title_end: panels
+            .iter()
+            .map(|p| FittedTitle::new(&p.title, title_room(PANEL_SIZE.0)).end())
+            .max()
+            .unwrap_or(0),
         show_text,
     };
     write_figure(path, format, size, &figure)
@@ -77,10 +87,30 @@ struct Spectra<'a> {
     grid: (usize, usize),
     /// `(floor, top)` of each panel.
     ranges: Vec<(f64, f64)>,
+    /// Where the widest title ends: every panel places its legend by it, so that the
+    /// plots of a row start at one height.
+    title_end: i32,
     show_text: bool,
 }
 
 impl Figure for Spectra<'_> {
+    fn axes(&self) -> Vec<AxisSpan> {
+        self.panels
+            .iter()
+            .zip(&self.ranges)
+            .flat_map(|(p, &range)| {
+                let grid = &p.fit.grid_hz;
+                [
+                    AxisSpan::log(
+                        format!("{}: frequency", p.title),
+                        (grid[0], grid[grid.len() - 1]),
+                    ),
+                    AxisSpan::linear(format!("{}: magnitude", p.title), range),
+                ]
+            })
+            .collect()
+    }
+
     fn draw_on<DB: DrawingBackend>(
         &self,
         root: &DrawingArea<DB, Shift>,
@@ -88,7 +118,7 @@ impl Figure for Spectra<'_> {
         root.fill(&WHITE)?;
         let areas = root.split_evenly(self.grid);
         for ((area, panel), &range) in areas.iter().zip(self.panels).zip(&self.ranges) {
-            draw_panel(area, panel, range, self.show_text)?;
+            draw_panel(area, panel, range, self.title_end, self.show_text)?;
         }
         Ok(())
     }
@@ -121,6 +151,7 @@ fn db_range(panel: &Panel<'_>) -> (f64, f64) {
         .iter()
         .chain(&fit.model)
         .chain(panel.physical.unwrap_or_default())
+        .chain(panel.recordings.iter().flatten())
         .map(|&m| db(m))
         .filter(|v| v.is_finite());
     let top = all_db.clone().fold(f64::NEG_INFINITY, f64::max);
@@ -137,11 +168,11 @@ fn draw_panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     panel: &Panel<'_>,
     (floor, top): (f64, f64),
+    title_end: i32,
     show_text: bool,
 ) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let fit = panel.fit;
     let ink = ink(show_text);
-    let text = |size: f64| (FAMILY, size).into_font().color(&ink);
     let series = |values: &[f64]| -> Vec<(f64, f64)> {
         fit.grid_hz
             .iter()
@@ -150,48 +181,44 @@ fn draw_panel<DB: DrawingBackend>(
             .collect()
     };
     let (lo, hi) = (fit.grid_hz[0], fit.grid_hz[fit.grid_hz.len() - 1]);
-
-    // Title and legend share the top row and are placed by hand: plotters' caption and
-    // legend measure text, which needs a font even for SVG.
-    let (w, _) = area.dim_in_pixel();
-    let row_y = (TITLE_HEIGHT / 2) as i32;
+    let recording_style = BLACK.mix(0.3).stroke_width(1);
     let measured_style = BLACK.stroke_width(2);
     let model_style = RED.stroke_width(2);
     let physical_style = BLUE.stroke_width(2);
-    if show_text {
-        area.draw(&Text::new(
-            panel.title.clone(),
-            (12, row_y),
-            text(17.0).pos(Pos::new(HPos::Left, VPos::Center)),
-        ))?;
-        let legend: &[(&str, ShapeStyle)] = if panel.physical.is_some() {
-            &[
-                ("measured", measured_style),
-                ("IIR", model_style),
-                ("physical", physical_style),
-            ]
-        } else {
-            &[("measured", measured_style), ("model", model_style)]
-        };
-        let first = w as i32 - 105 * legend.len() as i32;
-        for (i, &(label, style)) in legend.iter().enumerate() {
-            let x = first + 105 * i as i32;
-            area.draw(&PathElement::new(vec![(x, row_y), (x + 24, row_y)], style))?;
-            area.draw(&Text::new(
-                label,
-                (x + 30, row_y),
-                text(14.0).pos(Pos::new(HPos::Left, VPos::Center)),
-            ))?;
-        }
+    let entry = |label, line| LegendEntry {
+        label,
+        line,
+        patch: None,
+    };
+    let mut legend = Vec::with_capacity(4);
+    if panel.recordings.is_empty() {
+        legend.push(entry("measured", measured_style));
+    } else {
+        legend.push(entry("each recording", recording_style));
+        legend.push(entry("mean (fitted)", measured_style));
     }
-
+    if panel.physical.is_some() {
+        legend.push(entry("IIR", model_style));
+        legend.push(entry("physical", physical_style));
+    } else {
+        legend.push(entry("model", model_style));
+    }
+    let (w, _) = area.dim_in_pixel();
+    let placement = place_legend(w, title_end, &legend);
+    if show_text {
+        draw_title_and_legend(area, &panel.title, &legend, &placement, ink)?;
+    }
+    let area = &area.margin(placement.drop, 0, 0, 0);
     let mut chart = magnitude_chart(
         area,
         (lo, hi),
         (floor, top),
         ink,
-        "strike spectrum (dB, |DFT| in full-scale units)",
+        "strike spectrum (dB re full scale)",
     )?;
+    for recording in panel.recordings {
+        chart.draw_series(LineSeries::new(series(recording), recording_style))?;
+    }
     chart.draw_series(LineSeries::new(series(&fit.measured), measured_style))?;
     chart.draw_series(LineSeries::new(series(&fit.model), model_style))?;
     if let Some(physical) = panel.physical {
@@ -201,11 +228,11 @@ fn draw_panel<DB: DrawingBackend>(
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::plot::font::font;
 
-    fn record() -> FitRecord {
+    pub(in crate::plot) fn record() -> FitRecord {
         let grid: Vec<f64> = (0..32)
             .map(|i| 20.0 * 45f64.powf(f64::from(i) / 31.0))
             .collect();
@@ -241,11 +268,13 @@ mod tests {
                 title: "loud".into(),
                 fit: &loud,
                 physical: None,
+                recordings: &[],
             },
             Panel {
                 title: "quiet".into(),
                 fit: &quiet,
                 physical: None,
+                recordings: &[],
             },
         ];
         let own = ranges(&panels, YRange::Own);
@@ -266,11 +295,13 @@ mod tests {
                 title: "gravel".into(),
                 fit: &fit,
                 physical: None,
+                recordings: &[],
             },
             Panel {
                 title: "snow".into(),
                 fit: &fit,
                 physical: None,
+                recordings: &[],
             },
         ];
         // No font was registered under this family by this path: SVG must not need one.
@@ -298,6 +329,7 @@ mod tests {
                 title: "x".into(),
                 fit: &fit,
                 physical: None,
+                recordings: &[],
             }],
             YRange::Own,
             false,
@@ -312,22 +344,24 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("t.png");
         let fit = record();
-        let omitted = draw_spectra(
+        let drawn = draw_spectra(
             &path,
             &[Panel {
                 title: "x".into(),
                 fit: &fit,
                 physical: None,
+                recordings: &[],
             }],
             YRange::Own,
         )
         .expect("png");
         let expected = if font().expect("font lookup").is_some() {
-            Omitted::Nothing
+            crate::plot::Omitted::Nothing
         } else {
-            Omitted::Text
+            crate::plot::Omitted::Text
         };
-        assert_eq!(omitted, expected);
+        assert_eq!(drawn.omitted, expected);
+        assert_eq!(drawn.problems, Vec::<String>::new());
         assert!(std::fs::read(&path).expect("read").starts_with(b"\x89PNG"));
     }
 
@@ -343,6 +377,7 @@ mod tests {
                 title: "m".into(),
                 fit: &fit,
                 physical: None,
+                recordings: &[],
             }],
             YRange::Own,
             true,

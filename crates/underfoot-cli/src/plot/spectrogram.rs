@@ -14,9 +14,10 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 use underfoot::signal::spectrum::Spectrogram;
 use underfoot::units::{Decibels, Hz, SampleRate};
 
-use super::axes::{log_grid, time_decimals};
+use super::axes::{FittedTitle, log_grid, text_width, time_decimals, title_room};
 use super::font::FAMILY;
-use super::{Figure, Format, Omitted, TITLE_HEIGHT, draw, ink, write_figure};
+use super::layout::AxisSpan;
+use super::{Drawn, Figure, Format, TITLE_HEIGHT, draw, ink, write_figure};
 
 /// One labelled stretch of the timeline (e.g. a material of a walk).
 pub struct Segment<'a> {
@@ -114,7 +115,7 @@ pub fn draw_spectrogram(
     max_hz: f64,
     band: (f64, f64),
     segments: &[Segment<'_>],
-) -> anyhow::Result<Omitted> {
+) -> anyhow::Result<Drawn> {
     let input = Timeline {
         title,
         samples,
@@ -154,6 +155,13 @@ struct SpectrogramPlot<'a> {
 }
 
 impl Figure for SpectrogramPlot<'_> {
+    fn axes(&self) -> Vec<AxisSpan> {
+        vec![
+            AxisSpan::linear("time", (0.0, self.duration_s)),
+            AxisSpan::log("frequency", (self.bottom_hz, self.top_hz)),
+        ]
+    }
+
     fn draw_on<DB: DrawingBackend>(
         &self,
         root: &DrawingArea<DB, Shift>,
@@ -168,7 +176,7 @@ fn render_spectrogram(
     format: Format,
     input: &Timeline<'_>,
     show_text: bool,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Vec<String>> {
     let &Timeline {
         title,
         samples,
@@ -247,18 +255,21 @@ fn draw_spectrogram_on<DB: DrawingBackend>(
     let (w, _) = root.dim_in_pixel();
     let row_y = (TITLE_HEIGHT / 2) as i32;
     if plot.show_text {
+        let window = format!(
+            "Hann window of {} samples ({:.1} Hz bins), {:.0} ms columns",
+            spec.window,
+            spec.bin_hz,
+            spec.col_s * 1e3
+        );
+        // The title has the row up to the window's note, which keeps its size.
+        let title = FittedTitle::new(plot.title, title_room(w) - text_width(&window, 13.0) - 24);
         root.draw(&Text::new(
-            plot.title.to_string(),
+            title.text,
             (12, row_y),
-            text(17.0).pos(Pos::new(HPos::Left, VPos::Center)),
+            text(title.size).pos(Pos::new(HPos::Left, VPos::Center)),
         ))?;
         root.draw(&Text::new(
-            format!(
-                "Hann window of {} samples ({:.1} Hz bins), {:.0} ms columns",
-                spec.window,
-                spec.bin_hz,
-                spec.col_s * 1e3
-            ),
+            window,
             (w as i32 - 12, row_y),
             text(13.0).pos(Pos::new(HPos::Right, VPos::Center)),
         ))?;
@@ -398,17 +409,19 @@ fn draw_spectrogram_on<DB: DrawingBackend>(
         if !plot.show_text {
             continue;
         }
-        let lane = lane_free
-            .iter()
-            .position(|&free| free <= x0)
-            .unwrap_or(usize::from(lane_free[1] < lane_free[0]));
         // Text is not measured (SVG needs no font): 0.6 em a character is generous for
-        // sans-serif, so labels judged apart do not touch.
-        let width = (0.6 * LABEL_FONT_PX * s.label.chars().count() as f64).ceil() as i32;
-        lane_free[lane] = x0 + width + 10;
+        // sans-serif, so labels judged apart do not touch. A label near the right end is
+        // moved left to stay on the figure; one with no free lane is left out (its bar
+        // still shows where the segment is) rather than drawn over another.
+        let width = text_width(s.label, LABEL_FONT_PX);
+        let x = (x0 + 2).min(w as i32 - 8 - width);
+        let Some(lane) = lane_free.iter().position(|&free| free <= x) else {
+            continue;
+        };
+        lane_free[lane] = x + width + 10;
         root.draw(&Text::new(
             s.label.to_string(),
-            (x0 + 2, plot_top - 8 - (lane as u32 * LANE_HEIGHT) as i32),
+            (x, plot_top - 8 - (lane as u32 * LANE_HEIGHT) as i32),
             text(LABEL_FONT_PX).pos(Pos::new(HPos::Left, VPos::Bottom)),
         ))?;
     }
@@ -486,8 +499,10 @@ mod tests {
         let (x, segments) = two_tones();
         for name in ["s.svg", "s.png"] {
             let path = dir.path().join(name);
-            draw_spectrogram(&path, "walk", &x, 48_000, 1000.0, (20.0, 900.0), &segments)
-                .expect(name);
+            let drawn =
+                draw_spectrogram(&path, "walk", &x, 48_000, 1000.0, (20.0, 900.0), &segments)
+                    .expect(name);
+            assert_eq!(drawn.problems, Vec::<String>::new(), "{name}");
             assert!(std::fs::metadata(&path).expect(name).len() > 0, "{name}");
         }
         let svg = std::fs::read_to_string(dir.path().join("s.svg")).expect("read");
@@ -573,13 +588,16 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         for name in ["z.svg", "z.png"] {
             let path = dir.path().join(name);
-            draw_spectrogram(&path, "silence", &x, 48_000, 1000.0, (20.0, 900.0), &[]).expect(name);
+            let drawn = draw_spectrogram(&path, "silence", &x, 48_000, 1000.0, (20.0, 900.0), &[])
+                .expect(name);
+            assert_eq!(drawn.problems, Vec::<String>::new(), "{name}");
             assert!(std::fs::metadata(&path).expect(name).len() > 0, "{name}");
         }
         // One sample: a single, mostly zero-padded frame.
         let path = dir.path().join("one.png");
-        draw_spectrogram(&path, "one", &[1.0], 48_000, 1000.0, (20.0, 900.0), &[])
+        let drawn = draw_spectrogram(&path, "one", &[1.0], 48_000, 1000.0, (20.0, 900.0), &[])
             .expect("one sample");
+        assert_eq!(drawn.problems, Vec::<String>::new());
     }
 
     /// Relative luminance (sRGB, ITU-R BT.709 weights).
@@ -630,8 +648,10 @@ mod tests {
         }];
         for name in ["long.svg", "long.png"] {
             let path = dir.path().join(name);
-            draw_spectrogram(&path, "noise", &x, rate, 1000.0, (20.0, 900.0), &segments)
-                .expect(name);
+            let drawn =
+                draw_spectrogram(&path, "noise", &x, rate, 1000.0, (20.0, 900.0), &segments)
+                    .expect(name);
+            assert_eq!(drawn.problems, Vec::<String>::new(), "{name}");
             let bytes = std::fs::metadata(&path).expect(name).len();
             // Noise is the worst case for merging SVG cells.
             assert!(bytes < 15_000_000, "{name}: {bytes} bytes");

@@ -14,10 +14,11 @@ use plotters::prelude::*;
 use underfoot::analysis::steps::{StepConfig, StepSummary};
 
 use super::axes::{
-    LegendEntry, LegendPlacement, TITLE_FONT_PX, draw_title_and_legend, place_legend, text_width,
+    FittedTitle, LegendEntry, LegendPlacement, draw_title_and_legend, place_legend, title_room,
 };
 use super::font::FAMILY;
-use super::{Figure, Format, Omitted, TITLE_HEIGHT, draw, ink, write_figure};
+use super::layout::AxisSpan;
+use super::{Drawn, Figure, Format, TITLE_HEIGHT, draw, ink, write_figure};
 
 /// One panel: a title and the two summaries to draw (either may be absent: a library
 /// without recorded steps, a render with none found).
@@ -81,7 +82,7 @@ fn legend() -> [LegendEntry<'static>; 2] {
 }
 
 /// Draws `panels` into `path` on a grid of up to four columns.
-pub fn draw_steps(path: &Path, panels: &[StepPanel<'_>]) -> anyhow::Result<Omitted> {
+pub fn draw_steps(path: &Path, panels: &[StepPanel<'_>]) -> anyhow::Result<Drawn> {
     draw(path, |format, show_text| {
         render(path, format, panels, show_text)
     })
@@ -94,7 +95,7 @@ fn render(
     format: Format,
     panels: &[StepPanel<'_>],
     show_text: bool,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<Vec<String>> {
     if panels.is_empty() {
         bail!("nothing to plot in {}", path.display());
     }
@@ -112,7 +113,7 @@ fn render(
     let cfg = StepConfig::default();
     let widest = panels
         .iter()
-        .map(|p| 12 + text_width(&p.title, TITLE_FONT_PX))
+        .map(|p| FittedTitle::new(&p.title, title_room(STEP_PANEL_SIZE.0)).end())
         .max()
         .unwrap_or(0);
     let figure = Steps {
@@ -154,6 +155,14 @@ struct Steps<'a> {
 }
 
 impl Figure for Steps<'_> {
+    fn axes(&self) -> Vec<AxisSpan> {
+        vec![
+            AxisSpan::linear("time", (0.0, self.span_ms)),
+            AxisSpan::linear("envelope", (FLOOR_DB, TOP_DB)),
+            AxisSpan::linear("events", (0.0, self.events_top)),
+        ]
+    }
+
     fn draw_on<DB: DrawingBackend>(
         &self,
         root: &DrawingArea<DB, Shift>,
@@ -301,11 +310,11 @@ impl Steps<'_> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::plot::font::font;
 
-    fn summary(decay_len: usize, rate: f64) -> StepSummary {
+    pub(in crate::plot) fn summary(decay_len: usize, rate: f64) -> StepSummary {
         StepSummary {
             steps: 4,
             duration_ms: 200.0,
@@ -420,7 +429,7 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("t.png");
         let s = summary(60, 100.0);
-        let omitted = draw_steps(
+        let drawn = draw_steps(
             &path,
             &[StepPanel {
                 title: "x".into(),
@@ -430,11 +439,12 @@ mod tests {
         )
         .expect("png");
         let expected = if font().expect("font lookup").is_some() {
-            Omitted::Nothing
+            crate::plot::Omitted::Nothing
         } else {
-            Omitted::Text
+            crate::plot::Omitted::Text
         };
-        assert_eq!(omitted, expected);
+        assert_eq!(drawn.omitted, expected);
+        assert_eq!(drawn.problems, Vec::<String>::new());
     }
 
     #[test]

@@ -8,8 +8,12 @@ use anyhow::bail;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
+use super::axes::{
+    FittedTitle, LegendEntry, draw_title_and_legend, place_legend, text_width, title_room,
+};
 use super::font::FAMILY;
-use super::{Figure, Omitted, TITLE_HEIGHT, draw, ink, write_figure};
+use super::layout::AxisSpan;
+use super::{Drawn, Figure, TITLE_HEIGHT, draw, ink, write_figure};
 
 /// A marker on the timeline.
 pub struct TimelineMarker {
@@ -50,7 +54,7 @@ const LABEL_ROWS: usize = 3;
 const LABEL_ROW_PX: u32 = 16;
 
 /// Draws `timeline` into `path` (.png or .svg).
-pub fn draw_timeline(path: &Path, timeline: &Timeline) -> anyhow::Result<Omitted> {
+pub fn draw_timeline(path: &Path, timeline: &Timeline) -> anyhow::Result<Drawn> {
     draw(path, |format, show_text| {
         if timeline.force.iter().all(Vec::is_empty) && timeline.envelope.iter().all(Vec::is_empty) {
             bail!(
@@ -90,7 +94,29 @@ struct Drawing<'a> {
     show_text: bool,
 }
 
+impl Drawing<'_> {
+    /// The force axis's top: 15% above the largest force, at least 1.15 N.
+    fn force_top(&self) -> f64 {
+        self.timeline
+            .force
+            .iter()
+            .flatten()
+            .map(|(_, f)| *f)
+            .fold(1.0, f64::max)
+            * 1.15
+    }
+}
+
 impl Figure for Drawing<'_> {
+    fn axes(&self) -> Vec<AxisSpan> {
+        let span = (self.span.start, self.span.end);
+        vec![
+            AxisSpan::linear("time", span),
+            AxisSpan::linear("force", (0.0, self.force_top())),
+            AxisSpan::linear("output level", (FLOOR_DBFS, 0.0)),
+        ]
+    }
+
     fn draw_on<DB: DrawingBackend>(
         &self,
         root: &DrawingArea<DB, Shift>,
@@ -99,23 +125,31 @@ impl Figure for Drawing<'_> {
         let ink = ink(self.show_text);
         let text = |size: f64| (FAMILY, size).into_font().color(&ink);
         let t = self.timeline;
-        let (title_area, body) = root.split_vertically(TITLE_HEIGHT);
+        // One entry per channel, then the symbols' key; right of the title when they fit,
+        // else in rows below it (a 16-channel session).
+        let channels = t.force.len().max(t.envelope.len());
+        let labels: Vec<String> = (1..=channels).map(|c| format!("channel {c}")).collect();
+        let mut legend: Vec<LegendEntry<'_>> = labels
+            .iter()
+            .enumerate()
+            .map(|(c, label)| LegendEntry {
+                label,
+                line: colour(c).stroke_width(3),
+                patch: None,
+            })
+            .collect();
+        legend.push(LegendEntry {
+            label: "▲ strike   ┆ marker",
+            line: TRANSPARENT.into(),
+            patch: None,
+        });
+        let (w, _) = root.dim_in_pixel();
+        let title_end = FittedTitle::new(&t.title, title_room(w)).end();
+        let placement = place_legend(w, title_end, &legend);
         if self.show_text {
-            title_area.draw(&Text::new(t.title.clone(), (12, 8), text(17.0)))?;
-            // The legend: one entry per channel, on the title's line, right-aligned.
-            let channels = t.force.len().max(t.envelope.len());
-            let mut x = SIZE.0 as i32 - 12 - 110 * channels as i32 - 190;
-            for c in 0..channels {
-                title_area.draw(&Rectangle::new([(x, 14), (x + 18, 17)], colour(c).filled()))?;
-                title_area.draw(&Text::new(
-                    format!("channel {}", c + 1),
-                    (x + 24, 8),
-                    text(14.0),
-                ))?;
-                x += 110;
-            }
-            title_area.draw(&Text::new("▲ strike   ┆ marker", (x + 6, 8), text(14.0)))?;
+            draw_title_and_legend(root, &t.title, &legend, &placement, ink)?;
         }
+        let (_, body) = root.split_vertically(TITLE_HEIGHT + placement.drop);
         let label_band = LABEL_ROWS as u32 * LABEL_ROW_PX + 6;
         let (labels, charts) = body.split_vertically(label_band);
         let (_, h) = charts.dim_in_pixel();
@@ -123,13 +157,7 @@ impl Figure for Drawing<'_> {
         // A gap between the two, so that their y labels do not meet.
         let lower = lower.margin(14, 0, 0, 0);
 
-        let force_top = t
-            .force
-            .iter()
-            .flatten()
-            .map(|(_, f)| *f)
-            .fold(1.0, f64::max)
-            * 1.15;
+        let force_top = self.force_top();
         let mut force = ChartBuilder::on(&upper)
             .margin_right(16)
             .margin_left(10)
@@ -163,7 +191,7 @@ impl Figure for Drawing<'_> {
         let mut envelope = ChartBuilder::on(&lower)
             .margin_right(16)
             .margin_left(10)
-            .x_label_area_size(40)
+            .x_label_area_size(44)
             .y_label_area_size(84)
             .build_cartesian_2d(self.span.clone(), FLOOR_DBFS..0.0)?;
         envelope
@@ -202,13 +230,26 @@ impl Figure for Drawing<'_> {
             let (x0, _) = force.backend_coord(&(self.span.start, 0.0));
             let (x1, _) = force.backend_coord(&(self.span.end, 0.0));
             let (lx, _) = labels.get_base_pixel();
-            for (i, m) in t.markers.iter().enumerate() {
+            // Each label in the first row where it clears the one before it, moved left
+            // to stay on the figure; one that finds no row is left out (its dashed line
+            // still shows, and the record keeps every marker's label) rather than drawn
+            // over another.
+            let (label_w, _) = labels.dim_in_pixel();
+            let mut row_free = [i32::MIN; LABEL_ROWS];
+            let mut order: Vec<&TimelineMarker> = t.markers.iter().collect();
+            order.sort_by(|a, b| a.time.total_cmp(&b.time));
+            for m in order {
                 let frac = (m.time - self.span.start) / (self.span.end - self.span.start);
-                let x = x0 + ((x1 - x0) as f64 * frac) as i32 - lx;
-                let row = (i % LABEL_ROWS) as i32;
+                let width = text_width(&m.label, 12.0);
+                let x = (x0 + ((x1 - x0) as f64 * frac) as i32 - lx + 3)
+                    .min(label_w as i32 - 4 - width);
+                let Some(row) = (0..LABEL_ROWS).find(|&r| row_free[r] <= x) else {
+                    continue;
+                };
+                row_free[row] = x + width + 6;
                 labels.draw(&Text::new(
                     m.label.clone(),
-                    (x + 3, 2 + row * LABEL_ROW_PX as i32),
+                    (x, 2 + row as i32 * LABEL_ROW_PX as i32),
                     text(12.0),
                 ))?;
             }

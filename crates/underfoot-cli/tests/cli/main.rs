@@ -11,6 +11,7 @@ mod calibrate_cmd;
 mod compare_cmd;
 mod demo_cmd;
 mod export_cmd;
+mod figures;
 mod files;
 mod fit_cmd;
 mod library_cmd;

@@ -236,6 +236,34 @@ fn base64_decode(text: &str) -> Vec<u8> {
 }
 
 /// Where CI keeps the screenshots.
+/// A script that returns, for the SVG figure at `selector`, every pair of its texts
+/// whose rendered boxes cross by more than a pixel both ways, and every text that runs
+/// past the figure; `[]` when there are none. The boxes are the browser's own
+/// (`getBoundingClientRect`, after rotation), so this checks what a person sees.
+fn text_layout_problems(selector: &str) -> String {
+    format!(
+        "const svg = document.querySelector('{selector}');
+         if (!svg) return ['no figure at {selector}'];
+         const frame = svg.getBoundingClientRect();
+         const texts = [...svg.querySelectorAll('text')]
+           .filter((t) => t.textContent.trim())
+           .map((t) => [t.textContent, t.getBoundingClientRect()]);
+         const problems = [];
+         texts.forEach(([a, r], i) => {{
+           if (r.left < frame.left - 1 || r.right > frame.right + 1
+               || r.top < frame.top - 1 || r.bottom > frame.bottom + 1) {{
+             problems.push(`${{a}} runs past the figure`);
+           }}
+           for (const [b, q] of texts.slice(i + 1)) {{
+             const across = Math.min(r.right, q.right) - Math.max(r.left, q.left);
+             const down = Math.min(r.bottom, q.bottom) - Math.max(r.top, q.top);
+             if (across > 1 && down > 1) problems.push(`${{a}} overlaps ${{b}}`);
+           }}
+         }});
+         return problems;"
+    )
+}
+
 fn screenshots() -> PathBuf {
     let target = std::env::var_os("CARGO_TARGET_DIR").map_or_else(
         || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target"),
@@ -391,9 +419,16 @@ fn the_panel_works_in_a_headless_browser() {
         Duration::from_secs(5),
         "gravel's response and parameters",
         "return document.querySelector('#response svg').textContent.includes('gravel: order') && \
-         document.querySelector('#response .params').textContent.includes('events per newton') && \
+         document.querySelector('#response .params').textContent.includes('event-rate scale a') && \
+         !document.querySelector('#response .params').textContent.includes('undefined') && \
          / Hz to [0-9.]+ Hz/.test(document.querySelector('#response .params').textContent)",
     );
+    // The panel's figures pass the same layout check as the CLI's, measured by the
+    // browser itself: no text over another, none past the figure's edge.
+    for figure in ["#response svg", "#fit-result svg"] {
+        let problems = browser.script(&text_layout_problems(figure));
+        assert_eq!(problems, serde_json::json!([]), "{figure}");
+    }
     browser.script("document.querySelector('#library-section').scrollIntoView()");
     std::thread::sleep(Duration::from_millis(300));
     browser.screenshot(&screenshots().join("panel-library.png"));

@@ -442,6 +442,24 @@ pub fn measure(
     analyse(recordings, cfg, Chain::Conditioned)
 }
 
+/// Each recorded file's own measured response on `grid`, in the order of `recordings`
+/// (a long file's excerpts are measured together, as one file): what a figure draws
+/// behind the mean that [`measure`] gives over all of them. A file in which no strike is
+/// found, or whose strikes hold no energy somewhere in the band, has no curve of its own
+/// and is left out.
+#[must_use]
+pub fn measure_each_file(
+    recordings: &[Recording],
+    cfg: &AnalysisConfig,
+    grid: &[Hz],
+) -> Vec<Vec<f64>> {
+    crate::recording::by_file(recordings)
+        .into_iter()
+        .filter_map(|file| measure(&recordings[file], cfg).ok())
+        .map(|m| m.on_grid(grid))
+        .collect()
+}
+
 /// The reference the conditioning is checked against: the magnitude spectrum of the same
 /// strikes as [`measure`] finds (same onsets, same windows), averaged and smoothed the same
 /// way, but of the recordings only resampled to the analysis rate, with no smoother and no

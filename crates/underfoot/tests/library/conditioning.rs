@@ -12,7 +12,9 @@ use crate::common;
 
 use std::f64::consts::PI;
 
-use underfoot::analysis::{AnalysisConfig, MeasuredResponse, measure, raw_response};
+use underfoot::analysis::{
+    AnalysisConfig, MeasuredResponse, measure, measure_each_file, raw_response,
+};
 use underfoot::recording::{Recording, read};
 use underfoot::signal::noise::SplitMix64;
 use underfoot::signal::resample::Resampler;
@@ -213,6 +215,27 @@ fn synthetic_strikes_measure_the_same_however_cut() {
         ));
     }
     assert!(failures.is_empty(), "{failures:#?}");
+}
+
+#[test]
+fn each_file_is_measured_on_its_own_and_a_silent_one_is_left_out() {
+    let cfg = AnalysisConfig::default();
+    let grid: Vec<Hz> = cfg.band.log_grid(32);
+    let loud = synthetic_strike(SampleRate(44_100), 0.01, 0.3, 3);
+    let quiet = scaled(&synthetic_strike(SampleRate(44_100), 0.01, 0.3, 4), 0.1);
+    let silent = with_samples(&loud, SampleRate(44_100), vec![0.0; 13_230]);
+    let recs = vec![loud.clone(), silent, quiet.clone()];
+    let each = measure_each_file(&recs, &cfg, &grid);
+    assert_eq!(each.len(), 2, "the silent file has no strike, so no curve");
+    for (got, alone) in each.iter().zip([&loud, &quiet]) {
+        let want = measure(std::slice::from_ref(alone), &cfg)
+            .unwrap()
+            .on_grid(&grid);
+        assert_eq!(got, &want);
+    }
+    // The quiet file is the quiet one: 20 dB down, not the mean of all.
+    let ratio = each[0][10] / each[1][10];
+    assert!((ratio - 10.0).abs() < 3.0, "{ratio}");
 }
 
 #[test]

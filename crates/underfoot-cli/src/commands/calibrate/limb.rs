@@ -135,9 +135,9 @@ pub(super) fn run(args: &LimbArgs) -> anyhow::Result<()> {
                     p,
                     "Loaded response and the limb model H_u",
                     if args.unloaded.is_some() {
-                        "magnitude (dB re the device without the user)"
+                        "magnitude (dB re unloaded device)"
                     } else {
-                        "magnitude (dB re the equalized device's flat)"
+                        "magnitude (dB re equalized device)"
                     },
                     &curves,
                 )

@@ -23,7 +23,7 @@ use clap::Subcommand;
 use underfoot::atomic_file::OutputFile;
 
 use crate::output::emit;
-use crate::plot::Omitted;
+use crate::plot::Drawn;
 
 pub use equalize::EqualizeArgs;
 pub use limb::LimbArgs;
@@ -73,12 +73,7 @@ fn check_outputs(
     Ok((out, plot))
 }
 
-fn plotted(path: &Path, omitted: Omitted) -> anyhow::Result<()> {
-    if omitted == Omitted::Text {
-        eprintln!(
-            "underfoot: warning: no font found, so {} has no text (set UNDERFOOT_FONT)",
-            path.display()
-        );
-    }
+fn plotted(path: &Path, drawn: Drawn) -> anyhow::Result<()> {
+    drawn.report(path);
     emit(&format!("drew {}\n", path.display()))
 }

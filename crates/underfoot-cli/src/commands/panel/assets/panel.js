@@ -425,7 +425,7 @@ function physicalTable(m) {
     ["strike velocity (RMS)", fmt(p.hammer.velocity, " m/s")],
   ];
   if (p.kind === "aggregate") {
-    rows.push(["events per newton α", fmt(p.events_per_newton)], ["fragment size spread", fmt(p.size_spread)], ["impacts in flight", fmt(p.voices)]);
+    rows.push(["event-rate scale a", fmt(p.record.rate_scale)], ["fragment size spread", fmt(p.size_spread)], ["impacts in flight", fmt(p.voices)]);
   }
   rows.push(["output gain", fmt(p.output_gain)]);
   if (p.record) {
@@ -436,9 +436,29 @@ function physicalTable(m) {
     el("dl", {}, ...rows.flatMap(([k, v]) => [el("dt", { textContent: k }), el("dd", { textContent: v })])));
 }
 
-// Measured against model magnitude, dB on a log-frequency axis, as `fit --plot` draws it.
+// Measured against model magnitude, dB on a log-frequency axis, as `fit --plot` draws it:
+// the same words, the axis over the fitted band labelled at its edges, the physical
+// model's calibration render beside the filter's when there is one, and the legend on
+// the title's row when it fits there, else on a row of its own (never over the title or
+// the curves). Text is placed at 0.6 em a character, as the CLI's figures are.
 function responsePlot(m) {
-  const W = 900, H = 300, L = 56, R = 16, T = 30, B = 40;
+  const W = 900, L = 56, R = 16, B = 44;
+  const width = (text, size) => 0.6 * size * String(text).length;
+  const f = m.grid_hz;
+  const db = (v) => (v > 0 ? 20 * Math.log10(v) : null);
+  const physical = m.physical_model && m.physical_model.record && m.physical_model.record.model.length === f.length
+    ? m.physical_model.record.model.map(db) : null;
+  const curves = [
+    { label: "measured", values: m.measured_db, color: "#1d2430", width: 1.5 },
+    { label: physical ? "IIR" : "model", values: m.model_db, color: "#c62828", width: 2 },
+  ];
+  if (physical) curves.push({ label: "physical", values: physical, color: "#1565c0", width: 2 });
+  const title = `${m.name}: order ${m.order}, NRMSE ${m.nrmse.toFixed(4)}, LSD ${m.lsd_db.toFixed(2)} dB`
+    + (physical ? `; physical LSD ${m.physical_model.record.lsd_db.toFixed(2)} dB` : "");
+  const entryWidth = (c) => 26 + width(c.label, 12) + 16;
+  const legendWidth = curves.reduce((w, c) => w + entryWidth(c), 0);
+  const beside = L + width(title, 14) + 24 <= W - R - legendWidth;
+  const T = beside ? 30 : 50, H = 300 + (T - 30);
   const ns = "http://www.w3.org/2000/svg";
   const svg = document.createElementNS(ns, "svg");
   svg.setAttribute("viewBox", `0 0 ${W} ${H}`);
@@ -449,34 +469,44 @@ function responsePlot(m) {
     svg.append(e);
     return e;
   };
-  const f = m.grid_hz, all = m.measured_db.concat(m.model_db).filter(Number.isFinite);
-  const top = Math.ceil(Math.max(...all) / 10) * 10, bottom = Math.max(Math.floor(Math.min(...all) / 10) * 10, top - 90);
+  const all = curves.flatMap((c) => c.values).filter(Number.isFinite);
+  const top = Math.ceil(Math.max(...all) / 5) * 5, bottom = Math.max(Math.floor(Math.min(...all) / 5) * 5, top - 90);
+  const stepDb = top - bottom > 40 ? 10 : 5;
   const lf0 = Math.log10(f[0]), lf1 = Math.log10(f[f.length - 1]);
   const x = (hz) => L + ((Math.log10(hz) - lf0) / (lf1 - lf0)) * (W - L - R);
   const y = (d) => T + ((top - Math.max(bottom, d)) / (top - bottom)) * (H - T - B);
-  add("text", { x: L, y: 18, "font-size": 14, "font-weight": 600 },
-    `${m.name}: order ${m.order}, NRMSE ${m.nrmse.toFixed(4)}, LSD ${m.lsd_db.toFixed(2)} dB`);
-  for (let d = bottom; d <= top; d += 10) {
+  add("text", { x: L, y: 18, "font-size": 14, "font-weight": 600 }, title);
+  let lx = beside ? W - R - legendWidth : L, ly = beside ? 14 : 38;
+  for (const c of curves) {
+    add("line", { x1: lx, x2: lx + 20, y1: ly, y2: ly, stroke: c.color, "stroke-width": 2 });
+    add("text", { x: lx + 26, y: ly + 4, "font-size": 12 }, c.label);
+    lx += entryWidth(c);
+  }
+  for (let d = bottom; d <= top; d += stepDb) {
     add("line", { x1: L, x2: W - R, y1: y(d), y2: y(d), stroke: "#e3e7ee" });
     add("text", { x: L - 6, y: y(d) + 4, "font-size": 11, "text-anchor": "end", fill: "#5e6b7d" }, d);
   }
-  for (const hz of [10, 20, 50, 100, 200, 500, 1000, 2000, 5000]) {
-    if (hz < f[0] || hz > f[f.length - 1]) continue;
+  // The 1-2-5 frequencies inside the band, and its edges unless one is within a factor
+  // of 1.2 (their labels would collide).
+  const lo = f[0], hi = f[f.length - 1];
+  const ticks = [];
+  for (let decade = 1; decade <= 10000; decade *= 10) {
+    for (const k of [1, 2, 5]) if (k * decade >= lo * (1 - 1e-9) && k * decade <= hi * (1 + 1e-9)) ticks.push(k * decade);
+  }
+  for (const edge of [lo, hi]) if (ticks.every((t) => Math.max(t / edge, edge / t) >= 1.2)) ticks.push(edge);
+  for (const hz of ticks) {
     add("line", { x1: x(hz), x2: x(hz), y1: T, y2: H - B, stroke: "#e3e7ee" });
-    add("text", { x: x(hz), y: H - B + 15, "font-size": 11, "text-anchor": "middle", fill: "#5e6b7d" }, hz >= 1000 ? `${hz / 1000}k` : hz);
+    // Low enough that the leftmost clears the lowest dB label, which ends at the corner.
+    add("text", { x: x(hz), y: H - B + 19, "font-size": 11, "text-anchor": "middle", fill: "#5e6b7d" }, Math.round(hz));
   }
   add("text", { x: (L + W - R) / 2, y: H - 6, "font-size": 12, "text-anchor": "middle", fill: "#5e6b7d" }, "frequency (Hz)");
-  add("text", { x: 14, y: (T + H - B) / 2, "font-size": 12, "text-anchor": "middle", fill: "#5e6b7d", transform: `rotate(-90 14 ${(T + H - B) / 2})` }, "magnitude (dB, relative)");
-  const path = (values, color, width) => add("polyline", {
-    points: values.map((d, i) => `${x(f[i]).toFixed(1)},${y(d).toFixed(1)}`).join(" "),
-    fill: "none", stroke: color, "stroke-width": width,
-  });
-  path(m.measured_db, "#1d2430", 1.5);
-  path(m.model_db, "#c62828", 2);
-  add("line", { x1: W - R - 190, x2: W - R - 170, y1: T + 8, y2: T + 8, stroke: "#1d2430", "stroke-width": 2 });
-  add("text", { x: W - R - 165, y: T + 12, "font-size": 12 }, "measured");
-  add("line", { x1: W - R - 95, x2: W - R - 75, y1: T + 8, y2: T + 8, stroke: "#c62828", "stroke-width": 2 });
-  add("text", { x: W - R - 70, y: T + 12, "font-size": 12 }, "model");
+  add("text", { x: 14, y: (T + H - B) / 2, "font-size": 12, "text-anchor": "middle", fill: "#5e6b7d", transform: `rotate(-90 14 ${(T + H - B) / 2})` }, "strike spectrum (dB re full scale)");
+  for (const c of curves) {
+    add("polyline", {
+      points: c.values.map((d, i) => (Number.isFinite(d) ? `${x(f[i]).toFixed(1)},${y(d).toFixed(1)}` : null)).filter(Boolean).join(" "),
+      fill: "none", stroke: c.color, "stroke-width": c.width,
+    });
+  }
   return svg;
 }
 
