@@ -13,6 +13,7 @@
 //! | file | what it draws |
 //! |---|---|
 //! | `font.rs` | finding and registering the font PNG text needs |
+//! | `scaled.rs` | drawing a figure laid out at its base size onto a backend `k` times larger (`--plot-scale`) |
 //! | `layout.rs` | the layout check every figure passes before it is written: texts that overlap or run off the figure, empty axes |
 //! | `axes.rs` | the log-frequency magnitude frame shared by spectra and responses; axis labels; a panel's title and legend, placed so they never overlap |
 //! | `spectra.rs` | [`draw_spectra`]: measured against model, a panel per material |
@@ -25,6 +26,7 @@ mod axes;
 mod font;
 mod layout;
 mod responses;
+mod scaled;
 mod spectra;
 mod spectrogram;
 mod steps;
@@ -35,6 +37,7 @@ use std::path::Path;
 use anyhow::{Context, bail};
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use scaled::Scaled;
 
 pub use responses::{Curve, draw_responses};
 pub use spectra::{Panel, YRange, draw_spectra};
@@ -101,6 +104,8 @@ impl Drawn {
 }
 
 const PANEL_SIZE: (u32, u32) = (720, 420);
+/// The resolution a figure is laid out for: a 720-pixel panel is 7.5 inches wide.
+const BASE_DPI: f64 = 96.0;
 const TITLE_HEIGHT: u32 = 34;
 /// Magnitudes more than this far below the top of a panel are drawn at its floor, so
 /// that one deep notch does not flatten everything else.
@@ -118,17 +123,95 @@ trait Figure {
     fn axes(&self) -> Vec<layout::AxisSpan>;
 }
 
-/// Draws into `path` in the format its extension names: `render(format, show_text)`
-/// checks its input and draws, with text only when it can be drawn (always in SVG; in PNG
-/// only with a font), and returns its layout's problems. Says whether the text had to be
-/// left out.
+/// How large a figure is drawn: `k` times its base size, lines, text and pixels alike.
+/// The layout is the base size's, so a figure scaled is the same figure, sharper.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scale(f64);
+
+impl Scale {
+    /// The smallest and largest scales: a quarter of the base size (a thumbnail), and
+    /// eight times it (a 720-pixel panel at 5,760 pixels, 19 inches at 300 dpi).
+    pub const RANGE: (f64, f64) = (0.25, 8.0);
+
+    /// `k` times the base size.
+    ///
+    /// # Errors
+    /// `k` is not a finite number within [`Scale::RANGE`].
+    pub fn new(k: f64) -> Result<Self, String> {
+        let (lo, hi) = Self::RANGE;
+        if k.is_finite() && (lo..=hi).contains(&k) {
+            Ok(Self(k))
+        } else {
+            Err(format!(
+                "a figure's scale must be from {lo} to {hi}, not {k}"
+            ))
+        }
+    }
+
+    pub fn get(self) -> f64 {
+        self.0
+    }
+
+    /// `(width, height)` pixels at this scale.
+    fn apply(self, (w, h): (u32, u32)) -> (u32, u32) {
+        let k = |v: u32| (f64::from(v) * self.0).round().max(1.0) as u32;
+        (k(w), k(h))
+    }
+}
+
+impl Default for Scale {
+    fn default() -> Self {
+        Self(1.0)
+    }
+}
+
+impl std::str::FromStr for Scale {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, String> {
+        let k = text
+            .trim()
+            .parse::<f64>()
+            .map_err(|_| format!("a figure's scale is a number such as 2.5, not {text:?}"))?;
+        Self::new(k)
+    }
+}
+
+/// How a figure is drawn: its file's format, whether text can be drawn, and its scale.
+#[derive(Debug, Clone, Copy)]
+struct Canvas {
+    format: Format,
+    show_text: bool,
+    scale: Scale,
+}
+
+impl Canvas {
+    #[cfg(test)]
+    fn new(format: Format, show_text: bool) -> Self {
+        Self {
+            format,
+            show_text,
+            scale: Scale::default(),
+        }
+    }
+}
+
+/// Draws into `path` in the format its extension names, `scale` times the base size:
+/// `render(canvas)` checks its input and draws, with text only when it can be drawn
+/// (always in SVG; in PNG only with a font), and returns its layout's problems. Says
+/// whether the text had to be left out.
 fn draw(
     path: &Path,
-    render: impl FnOnce(Format, bool) -> anyhow::Result<Vec<String>>,
+    scale: Scale,
+    render: impl FnOnce(Canvas) -> anyhow::Result<Vec<String>>,
 ) -> anyhow::Result<Drawn> {
     let format = Format::of(path)?;
     let show_text = format == Format::Svg || font::font()?.is_some();
-    let problems = render(format, show_text)?;
+    let problems = render(Canvas {
+        format,
+        show_text,
+        scale,
+    })?;
     let omitted = if show_text {
         Omitted::Nothing
     } else {
@@ -137,15 +220,17 @@ fn draw(
     Ok(Drawn { omitted, problems })
 }
 
-/// Draws `figure`, `size` pixels, into `path` on the backend of `format`, and writes the
-/// file; returns what the layout check found.
+/// Draws `figure`, laid out on `size` pixels and drawn at the canvas's scale, into
+/// `path` on the backend of the canvas's format, and writes the file; returns what the
+/// layout check found.
 fn write_figure(
     path: &Path,
-    format: Format,
+    canvas: Canvas,
     size: (u32, u32),
     figure: &impl Figure,
 ) -> anyhow::Result<Vec<String>> {
     let problems = layout::Layout::of(figure, size).problems();
+    let (scale, pixels) = (canvas.scale, canvas.scale.apply(size));
     fn on<DB: DrawingBackend>(
         root: &DrawingArea<DB, Shift>,
         figure: &impl Figure,
@@ -155,15 +240,19 @@ fn write_figure(
             .and_then(|()| root.present())
             .map_err(|e| e.to_string())
     }
-    let drawn = match format {
-        Format::Svg => on(&SVGBackend::new(path, size).into_drawing_area(), figure),
+    let drawn = match canvas.format {
+        Format::Svg => on(
+            &Scaled::new(SVGBackend::new(path, pixels), size, scale).into_drawing_area(),
+            figure,
+        ),
         Format::Png => {
-            let mut rgb = vec![0_u8; 3 * size.0 as usize * size.1 as usize];
+            let mut rgb = vec![0_u8; 3 * pixels.0 as usize * pixels.1 as usize];
             let drawn = on(
-                &BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area(),
+                &Scaled::new(BitMapBackend::with_buffer(&mut rgb, pixels), size, scale)
+                    .into_drawing_area(),
                 figure,
             );
-            drawn.and_then(|()| write_png(path, size, &rgb).map_err(|e| e.to_string()))
+            drawn.and_then(|()| write_png(path, pixels, scale, &rgb).map_err(|e| e.to_string()))
         }
     };
     drawn
@@ -172,18 +261,26 @@ fn write_figure(
     Ok(problems)
 }
 
-/// Writes 8-bit RGB pixels, row by row, as a PNG. plotters draws into the buffer; the
+/// Writes 8-bit RGB pixels, row by row, as a PNG that says it is `96 × scale` dots per
+/// inch, so that a scaled figure prints at the base figure's size, only sharper. plotters draws into the buffer; the
 /// encoding is the `png` crate's, called here rather than through plotters' own encoder,
 /// which would bring the whole `image` crate (JPEG, BMP...) into every build for this.
 fn write_png(
     path: &Path,
     (width, height): (u32, u32),
+    scale: Scale,
     rgb: &[u8],
 ) -> Result<(), png::EncodingError> {
     let file = std::io::BufWriter::new(std::fs::File::create(path)?);
     let mut encoder = png::Encoder::new(file, width, height);
     encoder.set_color(png::ColorType::Rgb);
     encoder.set_depth(png::BitDepth::Eight);
+    let per_metre = (BASE_DPI * scale.get() / 0.0254).round() as u32;
+    encoder.set_pixel_dims(Some(png::PixelDimensions {
+        xppu: per_metre,
+        yppu: per_metre,
+        unit: png::Unit::Meter,
+    }));
     // A filter per row, picked for how well it compresses (plots are flat colour and thin
     // lines: a third smaller than one filter for all). With the default compression this
     // writes the same bytes as plotters' encoder did.
@@ -256,8 +353,12 @@ mod tests {
                 recordings: &each,
             })
             .collect();
-        assert_clean("one", |p| draw_spectra(p, &panels[..1], YRange::Own));
-        assert_clean("eleven", |p| draw_spectra(p, &panels, YRange::Shared));
+        assert_clean("one", |p| {
+            draw_spectra(p, Scale::default(), &panels[..1], YRange::Own)
+        });
+        assert_clean("eleven", |p| {
+            draw_spectra(p, Scale::default(), &panels, YRange::Shared)
+        });
     }
 
     #[test]
@@ -284,7 +385,13 @@ mod tests {
             .collect();
         let title = format!("{} against flat, pass by pass", long_name());
         assert_clean("responses", |p| {
-            draw_responses(p, &title, "magnitude (dB re its mean in the band)", &curves)
+            draw_responses(
+                p,
+                Scale::default(),
+                &title,
+                "magnitude (dB re its mean in the band)",
+                &curves,
+            )
         });
     }
 
@@ -299,7 +406,7 @@ mod tests {
                 rendered: Some(&summary),
             })
             .collect();
-        assert_clean("steps", |p| draw_steps(p, &panels));
+        assert_clean("steps", |p| draw_steps(p, Scale::default(), &panels));
     }
 
     #[test]
@@ -319,7 +426,16 @@ mod tests {
             .collect();
         let title = format!("A walk across {name}, played by the physical models");
         assert_clean("walk", |p| {
-            draw_spectrogram(p, &title, &x, rate as u32, 1000.0, (20.0, 900.0), &segments)
+            draw_spectrogram(
+                p,
+                Scale::default(),
+                &title,
+                &x,
+                rate as u32,
+                1000.0,
+                (20.0, 900.0),
+                &segments,
+            )
         });
     }
 
@@ -351,7 +467,9 @@ mod tests {
                 })
                 .collect(),
         };
-        assert_clean("timeline", |p| draw_timeline(p, &timeline));
+        assert_clean("timeline", |p| {
+            draw_timeline(p, Scale::default(), &timeline)
+        });
     }
 
     #[test]
@@ -371,7 +489,7 @@ mod tests {
         let rgb: Vec<u8> = (0..width * height * 3)
             .map(|i| (i * 7 % 251) as u8)
             .collect();
-        write_png(&path, (width, height), &rgb).expect("write");
+        write_png(&path, (width, height), Scale::default(), &rgb).expect("write");
         let decoder = png::Decoder::new(std::io::BufReader::new(
             std::fs::File::open(&path).expect("open"),
         ));

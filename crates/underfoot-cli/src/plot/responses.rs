@@ -11,7 +11,7 @@ use super::axes::{
     FittedTitle, LegendEntry, draw_title_and_legend, magnitude_chart, place_legend, title_room,
 };
 use super::layout::AxisSpan;
-use super::{Drawn, FLOOR_DB, Figure, PANEL_SIZE, draw, ink, write_figure};
+use super::{Drawn, FLOOR_DB, Figure, PANEL_SIZE, Scale, draw, ink, write_figure};
 
 /// One curve of a response plot: a label, frequencies, dB values, and a colour index.
 pub struct Curve<'a> {
@@ -35,11 +35,12 @@ const CURVE_COLOURS: [RGBColor; 6] = [
 /// passes against flat, or a limb model against its measurement.
 pub fn draw_responses(
     path: &Path,
+    scale: Scale,
     title: &str,
     y_desc: &str,
     curves: &[Curve<'_>],
 ) -> anyhow::Result<Drawn> {
-    draw(path, |format, show_text| {
+    draw(path, scale, |canvas| {
         if curves.is_empty() || curves.iter().any(|c| c.freqs_hz.len() < 2) {
             bail!("nothing to plot in {}", path.display());
         }
@@ -47,9 +48,9 @@ pub fn draw_responses(
             title,
             y_desc,
             curves,
-            show_text,
+            show_text: canvas.show_text,
         };
-        write_figure(path, format, PANEL_SIZE, &figure)
+        write_figure(path, canvas, PANEL_SIZE, &figure)
     })
 }
 

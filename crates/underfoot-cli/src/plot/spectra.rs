@@ -14,7 +14,7 @@ use super::axes::{
     FittedTitle, LegendEntry, draw_title_and_legend, magnitude_chart, place_legend, title_room,
 };
 use super::layout::AxisSpan;
-use super::{Drawn, FLOOR_DB, Figure, Format, PANEL_SIZE, draw, ink, write_figure};
+use super::{Canvas, Drawn, FLOOR_DB, Figure, PANEL_SIZE, Scale, draw, ink, write_figure};
 
 /// One panel: a title and the fit record to draw.
 pub struct Panel<'a> {
@@ -38,20 +38,22 @@ pub enum YRange {
 }
 
 /// Draws `panels` into `path` (two columns when there is more than one panel).
-pub fn draw_spectra(path: &Path, panels: &[Panel<'_>], y: YRange) -> anyhow::Result<Drawn> {
-    draw(path, |format, show_text| {
-        render(path, format, panels, y, show_text)
-    })
+pub fn draw_spectra(
+    path: &Path,
+    scale: Scale,
+    panels: &[Panel<'_>],
+    y: YRange,
+) -> anyhow::Result<Drawn> {
+    draw(path, scale, |canvas| render(path, canvas, panels, y))
 }
 
 /// Draws without looking for a font: with `show_text` false, every text is transparent,
 /// which the bitmap backend skips before it would need a font.
 fn render(
     path: &Path,
-    format: Format,
+    canvas: Canvas,
     panels: &[Panel<'_>],
     y: YRange,
-    show_text: bool,
 ) -> anyhow::Result<Vec<String>> {
     if panels.is_empty() {
         bail!("nothing to plot in {}", path.display());
@@ -76,9 +78,9 @@ fn render(
             .map(|p| FittedTitle::new(&p.title, title_room(PANEL_SIZE.0)).end())
             .max()
             .unwrap_or(0),
-        show_text,
+        show_text: canvas.show_text,
     };
-    write_figure(path, format, size, &figure)
+    write_figure(path, canvas, size, &figure)
 }
 
 /// The panels on a grid of `(rows, columns)`.
@@ -230,6 +232,7 @@ fn draw_panel<DB: DrawingBackend>(
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
+    use crate::plot::Format;
     use crate::plot::font::font;
 
     pub(in crate::plot) fn record() -> FitRecord {
@@ -305,7 +308,7 @@ pub(super) mod tests {
             },
         ];
         // No font was registered under this family by this path: SVG must not need one.
-        render(&path, Format::Svg, &panels, YRange::Own, true).expect("svg");
+        render(&path, Canvas::new(Format::Svg, true), &panels, YRange::Own).expect("svg");
         let svg = std::fs::read_to_string(&path).expect("read");
         assert!(
             svg.contains(">\ngravel\n</text>") && svg.contains(">\nsnow\n</text>"),
@@ -324,7 +327,7 @@ pub(super) mod tests {
         let fit = record();
         render(
             &path,
-            Format::Png,
+            Canvas::new(Format::Png, false),
             &[Panel {
                 title: "x".into(),
                 fit: &fit,
@@ -332,7 +335,6 @@ pub(super) mod tests {
                 recordings: &[],
             }],
             YRange::Own,
-            false,
         )
         .expect("png");
         let bytes = std::fs::read(&path).expect("read");
@@ -346,6 +348,7 @@ pub(super) mod tests {
         let fit = record();
         let drawn = draw_spectra(
             &path,
+            Scale::default(),
             &[Panel {
                 title: "x".into(),
                 fit: &fit,
@@ -372,7 +375,7 @@ pub(super) mod tests {
         fit.grid_hz.truncate(1);
         let e = render(
             &dir.path().join("x.svg"),
-            Format::Svg,
+            Canvas::new(Format::Svg, true),
             &[Panel {
                 title: "m".into(),
                 fit: &fit,
@@ -380,7 +383,6 @@ pub(super) mod tests {
                 recordings: &[],
             }],
             YRange::Own,
-            true,
         )
         .expect_err("one point");
         assert!(e.to_string().contains("fewer than 2 points"));

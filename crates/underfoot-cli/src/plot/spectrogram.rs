@@ -17,7 +17,7 @@ use underfoot::units::{Decibels, Hz, SampleRate};
 use super::axes::{FittedTitle, log_grid, text_width, time_decimals, title_room};
 use super::font::FAMILY;
 use super::layout::AxisSpan;
-use super::{Drawn, Figure, Format, TITLE_HEIGHT, draw, ink, write_figure};
+use super::{Canvas, Drawn, Figure, Format, Scale, TITLE_HEIGHT, draw, ink, write_figure};
 
 /// One labelled stretch of the timeline (e.g. a material of a walk).
 pub struct Segment<'a> {
@@ -107,8 +107,13 @@ fn stft(
 /// A wrong extension, no samples, a zero rate, a `max_hz` that is not positive, a sample
 /// that is not finite, a segment whose ends are not finite or in order, or a failure to
 /// draw or write the file.
+#[expect(
+    clippy::too_many_arguments,
+    reason = "each is its own quantity, named at the one call site"
+)]
 pub fn draw_spectrogram(
     path: &Path,
+    scale: Scale,
     title: &str,
     samples: &[f32],
     rate_hz: u32,
@@ -124,8 +129,8 @@ pub fn draw_spectrogram(
         band,
         segments,
     };
-    draw(path, |format, show_text| {
-        render_spectrogram(path, format, &input, show_text)
+    draw(path, scale, |canvas| {
+        render_spectrogram(path, canvas, &input)
     })
 }
 
@@ -173,9 +178,8 @@ impl Figure for SpectrogramPlot<'_> {
 /// Like the other plots' `render`, draws without looking for a font.
 fn render_spectrogram(
     path: &Path,
-    format: Format,
+    canvas: Canvas,
     input: &Timeline<'_>,
-    show_text: bool,
 ) -> anyhow::Result<Vec<String>> {
     let &Timeline {
         title,
@@ -224,7 +228,7 @@ fn render_spectrogram(
             band.1
         );
     }
-    let cells = match format {
+    let cells = match canvas.format {
         Format::Svg => SVG_CELLS,
         Format::Png => PNG_CELLS,
     };
@@ -236,10 +240,10 @@ fn render_spectrogram(
         top_hz,
         band,
         segments,
-        show_text,
-        raster: format == Format::Png,
+        show_text: canvas.show_text,
+        raster: canvas.format == Format::Png,
     };
-    write_figure(path, format, SPECTROGRAM_SIZE, &plot)
+    write_figure(path, canvas, SPECTROGRAM_SIZE, &plot)
 }
 
 fn draw_spectrogram_on<DB: DrawingBackend>(
@@ -499,9 +503,17 @@ mod tests {
         let (x, segments) = two_tones();
         for name in ["s.svg", "s.png"] {
             let path = dir.path().join(name);
-            let drawn =
-                draw_spectrogram(&path, "walk", &x, 48_000, 1000.0, (20.0, 900.0), &segments)
-                    .expect(name);
+            let drawn = draw_spectrogram(
+                &path,
+                Scale::default(),
+                "walk",
+                &x,
+                48_000,
+                1000.0,
+                (20.0, 900.0),
+                &segments,
+            )
+            .expect(name);
             assert_eq!(drawn.problems, Vec::<String>::new(), "{name}");
             assert!(std::fs::metadata(&path).expect(name).len() > 0, "{name}");
         }
@@ -531,7 +543,7 @@ mod tests {
             band: (20.0, 900.0),
             segments: &segments,
         };
-        render_spectrogram(&path, Format::Png, &input, false).expect("png");
+        render_spectrogram(&path, Canvas::new(Format::Png, false), &input).expect("png");
         assert!(std::fs::read(&path).expect("read").starts_with(b"\x89PNG"));
     }
 
@@ -539,45 +551,47 @@ mod tests {
     fn empty_and_bad_input_are_errors() {
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("e.svg");
-        let e = draw_spectrogram(&path, "t", &[], 48_000, 1000.0, (20.0, 900.0), &[])
-            .expect_err("empty");
-        assert!(e.to_string().contains("no samples"), "{e}");
-        let x = [0.0, f32::NAN];
-        let e =
-            draw_spectrogram(&path, "t", &x, 48_000, 1000.0, (20.0, 900.0), &[]).expect_err("NaN");
-        assert!(e.to_string().contains("sample 1 is NaN"), "{e}");
-        let e =
-            draw_spectrogram(&path, "t", &[0.0], 0, 1000.0, (20.0, 900.0), &[]).expect_err("rate");
-        assert!(e.to_string().contains("0 Hz"), "{e}");
-        let e =
-            draw_spectrogram(&path, "t", &[0.0], 48_000, 0.0, (20.0, 900.0), &[]).expect_err("top");
-        assert!(e.to_string().contains("top frequency"), "{e}");
-        for band in [
+        // What each bad input is refused with: the spectrogram of `samples` at `rate`
+        // up to `top` Hz, with `band` marked and `segments` labelled.
+        let refused = |samples: &[f32], rate, top, band, segments: &[Segment<'_>]| {
+            draw_spectrogram(
+                &path,
+                Scale::default(),
+                "t",
+                samples,
+                rate,
+                top,
+                band,
+                segments,
+            )
+            .expect_err("bad input")
+            .to_string()
+        };
+        let band = (20.0, 900.0);
+        let e = refused(&[], 48_000, 1000.0, band, &[]);
+        assert!(e.contains("no samples"), "{e}");
+        let e = refused(&[0.0, f32::NAN], 48_000, 1000.0, band, &[]);
+        assert!(e.contains("sample 1 is NaN"), "{e}");
+        let e = refused(&[0.0], 0, 1000.0, band, &[]);
+        assert!(e.contains("0 Hz"), "{e}");
+        let e = refused(&[0.0], 48_000, 0.0, band, &[]);
+        assert!(e.contains("top frequency"), "{e}");
+        for bad in [
             (0.0, 900.0),
             (900.0, 20.0),
             (2000.0, 3000.0),
             (f64::NAN, 900.0),
         ] {
-            let e =
-                draw_spectrogram(&path, "t", &[0.0], 48_000, 1000.0, band, &[]).expect_err("band");
-            assert!(e.to_string().contains("the band"), "{band:?}: {e}");
+            let e = refused(&[0.0], 48_000, 1000.0, bad, &[]);
+            assert!(e.contains("the band"), "{bad:?}: {e}");
         }
         let backwards = Segment {
             label: "mud",
             start_s: 2.0,
             end_s: 1.0,
         };
-        let e = draw_spectrogram(
-            &path,
-            "t",
-            &[0.0],
-            48_000,
-            1000.0,
-            (20.0, 900.0),
-            &[backwards],
-        )
-        .expect_err("segment");
-        assert!(e.to_string().contains("\"mud\""), "{e}");
+        let e = refused(&[0.0], 48_000, 1000.0, band, &[backwards]);
+        assert!(e.contains("\"mud\""), "{e}");
     }
 
     #[test]
@@ -588,15 +602,33 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         for name in ["z.svg", "z.png"] {
             let path = dir.path().join(name);
-            let drawn = draw_spectrogram(&path, "silence", &x, 48_000, 1000.0, (20.0, 900.0), &[])
-                .expect(name);
+            let drawn = draw_spectrogram(
+                &path,
+                Scale::default(),
+                "silence",
+                &x,
+                48_000,
+                1000.0,
+                (20.0, 900.0),
+                &[],
+            )
+            .expect(name);
             assert_eq!(drawn.problems, Vec::<String>::new(), "{name}");
             assert!(std::fs::metadata(&path).expect(name).len() > 0, "{name}");
         }
         // One sample: a single, mostly zero-padded frame.
         let path = dir.path().join("one.png");
-        let drawn = draw_spectrogram(&path, "one", &[1.0], 48_000, 1000.0, (20.0, 900.0), &[])
-            .expect("one sample");
+        let drawn = draw_spectrogram(
+            &path,
+            Scale::default(),
+            "one",
+            &[1.0],
+            48_000,
+            1000.0,
+            (20.0, 900.0),
+            &[],
+        )
+        .expect("one sample");
         assert_eq!(drawn.problems, Vec::<String>::new());
     }
 
@@ -648,9 +680,17 @@ mod tests {
         }];
         for name in ["long.svg", "long.png"] {
             let path = dir.path().join(name);
-            let drawn =
-                draw_spectrogram(&path, "noise", &x, rate, 1000.0, (20.0, 900.0), &segments)
-                    .expect(name);
+            let drawn = draw_spectrogram(
+                &path,
+                Scale::default(),
+                "noise",
+                &x,
+                rate,
+                1000.0,
+                (20.0, 900.0),
+                &segments,
+            )
+            .expect(name);
             assert_eq!(drawn.problems, Vec::<String>::new(), "{name}");
             let bytes = std::fs::metadata(&path).expect(name).len();
             // Noise is the worst case for merging SVG cells.

@@ -18,7 +18,7 @@ use super::axes::{
 };
 use super::font::FAMILY;
 use super::layout::AxisSpan;
-use super::{Drawn, Figure, Format, TITLE_HEIGHT, draw, ink, write_figure};
+use super::{Canvas, Drawn, Figure, Scale, TITLE_HEIGHT, draw, ink, write_figure};
 
 /// One panel: a title and the two summaries to draw (either may be absent: a library
 /// without recorded steps, a render with none found).
@@ -82,20 +82,13 @@ fn legend() -> [LegendEntry<'static>; 2] {
 }
 
 /// Draws `panels` into `path` on a grid of up to four columns.
-pub fn draw_steps(path: &Path, panels: &[StepPanel<'_>]) -> anyhow::Result<Drawn> {
-    draw(path, |format, show_text| {
-        render(path, format, panels, show_text)
-    })
+pub fn draw_steps(path: &Path, scale: Scale, panels: &[StepPanel<'_>]) -> anyhow::Result<Drawn> {
+    draw(path, scale, |canvas| render(path, canvas, panels))
 }
 
 /// Draws without looking for a font: with `show_text` false, every text is transparent,
 /// which the bitmap backend skips before it would need a font.
-fn render(
-    path: &Path,
-    format: Format,
-    panels: &[StepPanel<'_>],
-    show_text: bool,
-) -> anyhow::Result<Vec<String>> {
+fn render(path: &Path, canvas: Canvas, panels: &[StepPanel<'_>]) -> anyhow::Result<Vec<String>> {
     if panels.is_empty() {
         bail!("nothing to plot in {}", path.display());
     }
@@ -119,13 +112,13 @@ fn render(
     let figure = Steps {
         panels,
         grid: (rows, cols),
-        show_text,
+        show_text: canvas.show_text,
         bin_ms: cfg.decay_bin.0 * 1e3,
         span_ms: cfg.after.0 * 1e3,
         events_top: events_top(panels),
         legend: place_legend(STEP_PANEL_SIZE.0, widest, &legend()),
     };
-    write_figure(path, format, size, &figure)
+    write_figure(path, canvas, size, &figure)
 }
 
 /// The events strips' shared top: the highest rate of any panel, rounded up to one
@@ -312,6 +305,7 @@ impl Steps<'_> {
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
+    use crate::plot::Format;
     use crate::plot::font::font;
 
     pub(in crate::plot) fn summary(decay_len: usize, rate: f64) -> StepSummary {
@@ -353,7 +347,7 @@ pub(super) mod tests {
                 rendered: None,
             },
         ];
-        render(&path, Format::Svg, &panels, true).expect("svg");
+        render(&path, Canvas::new(Format::Svg, true), &panels).expect("svg");
         let svg = std::fs::read_to_string(&path).expect("read");
         assert!(
             svg.contains(">\ngravel\n</text>") && svg.contains(">\nsnow\n</text>"),
@@ -411,13 +405,12 @@ pub(super) mod tests {
         let path = dir.path().join("s.png");
         render(
             &path,
-            Format::Png,
+            Canvas::new(Format::Png, false),
             &[StepPanel {
                 title: "x".into(),
                 recorded: None,
                 rendered: None,
             }],
-            false,
         )
         .expect("png");
         let bytes = std::fs::read(&path).expect("read");
@@ -431,6 +424,7 @@ pub(super) mod tests {
         let s = summary(60, 100.0);
         let drawn = draw_steps(
             &path,
+            Scale::default(),
             &[StepPanel {
                 title: "x".into(),
                 recorded: Some(&s),
@@ -450,7 +444,12 @@ pub(super) mod tests {
     #[test]
     fn no_panels_is_an_error() {
         let dir = tempfile::tempdir().expect("tempdir");
-        let e = render(&dir.path().join("x.svg"), Format::Svg, &[], true).expect_err("empty");
+        let e = render(
+            &dir.path().join("x.svg"),
+            Canvas::new(Format::Svg, true),
+            &[],
+        )
+        .expect_err("empty");
         assert!(e.to_string().contains("nothing to plot"));
     }
 }

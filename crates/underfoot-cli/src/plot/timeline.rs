@@ -13,7 +13,7 @@ use super::axes::{
 };
 use super::font::FAMILY;
 use super::layout::AxisSpan;
-use super::{Drawn, Figure, TITLE_HEIGHT, draw, ink, write_figure};
+use super::{Drawn, Figure, Scale, TITLE_HEIGHT, draw, ink, write_figure};
 
 /// A marker on the timeline.
 pub struct TimelineMarker {
@@ -54,8 +54,8 @@ const LABEL_ROWS: usize = 3;
 const LABEL_ROW_PX: u32 = 16;
 
 /// Draws `timeline` into `path` (.png or .svg).
-pub fn draw_timeline(path: &Path, timeline: &Timeline) -> anyhow::Result<Drawn> {
-    draw(path, |format, show_text| {
+pub fn draw_timeline(path: &Path, scale: Scale, timeline: &Timeline) -> anyhow::Result<Drawn> {
+    draw(path, scale, |canvas| {
         if timeline.force.iter().all(Vec::is_empty) && timeline.envelope.iter().all(Vec::is_empty) {
             bail!(
                 "nothing to plot in {}: the record holds no force and no output",
@@ -82,9 +82,9 @@ pub fn draw_timeline(path: &Path, timeline: &Timeline) -> anyhow::Result<Drawn> 
         let figure = Drawing {
             timeline,
             span: start..end.max(start + 1.0),
-            show_text,
+            show_text: canvas.show_text,
         };
-        write_figure(path, format, SIZE, &figure)
+        write_figure(path, canvas, SIZE, &figure)
     })
 }
 

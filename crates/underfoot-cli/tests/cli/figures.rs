@@ -192,6 +192,27 @@ fn every_figure_of_every_plot_command_passes_the_layout_check() {
         args.extend(["--plot", s(&plot)]);
         args.extend(gravel.iter().map(String::as_str));
         check(&args, &[&plot], font);
+        if ext == "png" {
+            // At 2.5 times: the same figure at 1800x1050, saying 240 dpi so that it
+            // prints at the base figure's 7.5 inches.
+            let (big, library) = (p("fit-x2.5.png"), p("lib-x2.5.json"));
+            let mut scaled = vec!["fit", "--name", "gravel", "--library", s(&library)];
+            scaled.extend(["--plot", s(&big), "--plot-scale", "2.5"]);
+            scaled.extend(gravel.iter().map(String::as_str));
+            check(&scaled, &[&big], font);
+            let reader =
+                png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&big).unwrap()))
+                    .read_info()
+                    .unwrap();
+            let info = reader.info();
+            assert_eq!((info.width, info.height), (1800, 1050));
+            let dims = info.pixel_dims.expect("a resolution");
+            assert_eq!(dims.unit, png::Unit::Meter);
+            assert!(
+                (f64::from(dims.xppu) * 0.0254 - 240.0).abs() < 0.1,
+                "{dims:?}"
+            );
+        }
 
         let figs = p(&format!("fig4-{ext}"));
         let hard = format!("hard={}", s(&data.join("hard")));
