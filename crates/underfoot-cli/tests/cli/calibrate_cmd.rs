@@ -83,6 +83,18 @@ fn a_compensation_session_on_the_simulated_tile() {
     let o = run(&["eq-table", "show", "anna", "--table", s(&table)]);
     assert_ok(&o);
     assert!(stdout(&o).contains("b3/k3") && stdout(&o).contains("equalizer (dB)"));
+    // The curve is measured over 40-1024 Hz: above it, it never boosts (it held +12 dB
+    // at 1125-1418 Hz before).
+    let above: Vec<(f64, f64)> = stdout(&o)
+        .lines()
+        .filter_map(|l| {
+            let mut cols = l.split_whitespace().map(str::parse::<f64>);
+            Some((cols.next()?.ok()?, cols.next()?.ok()?))
+        })
+        .filter(|&(hz, _)| hz > 1100.0)
+        .collect();
+    assert!(above.len() > 5, "{}", stdout(&o));
+    assert!(above.iter().all(|&(_, db)| db <= 0.0), "{above:?}");
     let copy = p("users-copy.json");
     fs::copy(&table, &copy).unwrap();
     assert_ok(&run(&["eq-table", "remove", "bob", "--table", s(&copy)]));

@@ -7,7 +7,7 @@ use anyhow::Context;
 use clap::Args;
 use underfoot::atomic_file::OutputFile;
 use underfoot::compensation::equalizer::{
-    Capped, EqualizerConfig, EqualizerFilter, PassReport, Realisation, auto_taps, equalize,
+    Capped, Equalization, EqualizerConfig, EqualizerFilter, Realisation, auto_taps, equalize,
 };
 use underfoot::compensation::files::{EqualizerFile, PassFigures};
 use underfoot::document;
@@ -202,7 +202,7 @@ pub(super) fn run(args: &EqualizeArgs) -> anyhow::Result<()> {
         eq.best
     ))?;
     if let Some(plot_out) = &plot_out {
-        draw_passes(plot_out, args.plot_scale, &eq.passes, eq.best, &eq.capped)?;
+        draw_passes(plot_out, args.plot_scale, &eq)?;
     }
     Ok(())
 }
@@ -241,13 +241,10 @@ fn capped_report(capped: &[Capped], residual: Decibels, config: &EqualizerConfig
     )
 }
 
-fn draw_passes(
-    out: &OutputFile,
-    scale: Scale,
-    passes: &[PassReport],
-    best: usize,
-    capped: &[Capped],
-) -> anyhow::Result<()> {
+/// Every pass's measured response against flat, where the bounds stopped the
+/// correction, and the equalizer itself: the gain of the weights kept, over the band.
+fn draw_passes(out: &OutputFile, scale: Scale, eq: &Equalization) -> anyhow::Result<()> {
+    let (passes, best, capped) = (&eq.passes, eq.best, &eq.capped);
     let data: Vec<(Vec<f64>, Vec<f64>)> = passes
         .iter()
         .map(|p| {
@@ -282,6 +279,11 @@ fn draw_passes(
         })
         .filter(|(_, f, _)| f.len() >= 2)
         .collect();
+    let (lo, hi) = (best_f[0], best_f[best_f.len() - 1]);
+    let (gain_f, gain_db): (Vec<f64>, Vec<f64>) = (0..eq.weights.gains_db.len())
+        .map(|k| (eq.weights.bin_frequency(k).0, eq.weights.gains_db[k]))
+        .filter(|&(f, _)| f >= lo && f <= hi)
+        .unzip();
     let curves: Vec<Curve<'_>> = passes
         .iter()
         .zip(&data)
@@ -306,6 +308,11 @@ fn draw_passes(
             freqs_hz: f,
             db,
         }))
+        .chain((gain_f.len() >= 2).then(|| Curve {
+            label: format!("the equalizer (pass {best}'s gain)"),
+            freqs_hz: &gain_f,
+            db: &gain_db,
+        }))
         .collect();
     plotted(
         out.path(),
@@ -313,8 +320,8 @@ fn draw_passes(
             draw_responses(
                 p,
                 scale,
-                "Equalized device against flat, pass by pass",
-                "magnitude (dB re its mean in the band)",
+                "Equalized device against flat, pass by pass, and the equalizer",
+                "magnitude or gain (dB re band mean)",
                 &curves,
             )
         })?,
