@@ -4,7 +4,8 @@
 //! Writes into `--out-dir`:
 //! - `walk.wav`: the vibration of the walk, one channel (float);
 //! - `walk-force.csv`: the force track that drove it;
-//! - `walk.svg`: its spectrogram, materials marked;
+//! - `walk.svg`: its spectrogram, materials marked (`.png` with `--plot-format png`, as
+//!   the other two figures);
 //! - `spectra.svg`: each material's measured response against its fitted model (Fig. 4);
 //! - `steps.svg`: each material's steps in time, its recorded steps' decay envelope and
 //!   micro-events against those of its stretch of the walk;
@@ -55,6 +56,9 @@ pub struct DemoArgs {
     /// materials at a glance) or each material its own (`own`: the most detail).
     #[arg(long, value_enum, default_value_t = plot::YRange::Shared, value_name = "RANGE")]
     y_range: plot::YRange,
+    /// Image format of the plots.
+    #[arg(long, value_name = "svg|png", default_value = "svg", value_parser = ["svg", "png"])]
+    plot_format: String,
     /// Draw figures K times their base size, lines, text and pixels alike (2.5: a
     /// 720x420 panel at 1800x1050; a PNG records 96 x K dpi, so it prints at the base
     /// size, sharper).
@@ -153,13 +157,14 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     // written: never the library or compensation files the demo reads, never a device.
     let inputs = args.synth.input_files();
     let inputs: Vec<&std::path::Path> = inputs.iter().map(PathBuf::as_path).collect();
+    let ext = &args.plot_format;
     let names = [
-        "walk.wav",
-        "walk-force.csv",
-        "walk.json",
-        "walk.svg",
-        "spectra.svg",
-        "steps.svg",
+        "walk.wav".to_owned(),
+        "walk-force.csv".to_owned(),
+        "walk.json".to_owned(),
+        format!("walk.{ext}"),
+        format!("spectra.{ext}"),
+        format!("steps.{ext}"),
     ];
     let paths: Vec<PathBuf> = names.iter().map(|n| args.out_dir.join(n)).collect();
     let outs = OutputFile::check_all(

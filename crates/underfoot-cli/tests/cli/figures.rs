@@ -74,9 +74,9 @@ fn every_figure_of_every_plot_command_passes_the_layout_check() {
     let dir = tempfile::tempdir().unwrap();
     let p = |name: &str| dir.path().join(name);
 
-    // demo writes SVG: its spectrogram, spectra and steps, for both models.
-    for model in ["iir", "physical"] {
-        let out = p(&format!("demo-{model}"));
+    // demo's spectrogram, spectra and steps, for both models, in both formats.
+    for (model, ext) in [("iir", "svg"), ("physical", "svg"), ("iir", "png")] {
+        let out = p(&format!("demo-{model}-{ext}"));
         check(
             &[
                 "demo",
@@ -86,11 +86,13 @@ fn every_figure_of_every_plot_command_passes_the_layout_check() {
                 model,
                 "--steps",
                 "4",
+                "--plot-format",
+                ext,
             ],
             &[
-                &out.join("walk.svg"),
-                &out.join("spectra.svg"),
-                &out.join("steps.svg"),
+                &out.join(format!("walk.{ext}")),
+                &out.join(format!("spectra.{ext}")),
+                &out.join(format!("steps.{ext}")),
             ],
             font,
         );
