@@ -11,21 +11,35 @@ use std::time::{Duration, Instant};
 use underfoot::recording::{Recording, read};
 
 /// The shared recordings of `material` (`../shared/data/footsteps/MATERIAL/*.ogg`, in
-/// name order), or `None` when they are absent or one does not read: the benches that
-/// need them then say so and time nothing.
+/// name order).
+///
+/// # Panics
+/// When they are absent, or one does not read: a bench of real recordings that quietly
+/// timed nothing (or something else) would print a figure the README might quote. The
+/// message says where the recordings were looked for.
 #[must_use]
-pub fn shared_recordings(material: &str) -> Option<Vec<Recording>> {
+pub fn shared_recordings(material: &str) -> Vec<Recording> {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../../../shared/data/footsteps")
         .join(material);
-    let mut files: Vec<_> = std::fs::read_dir(dir)
-        .ok()?
+    let entries = std::fs::read_dir(&dir).unwrap_or_else(|e| {
+        panic!(
+            "this bench times the shared recordings of {material}, which are not at {} ({e}): \
+             put the shared data beside the project (see its README)",
+            dir.display()
+        )
+    });
+    let mut files: Vec<_> = entries
         .filter_map(Result::ok)
         .map(|e| e.path())
         .filter(|p| p.extension().is_some_and(|e| e == "ogg"))
         .collect();
     files.sort();
-    files.iter().map(|p| read(p, None).ok()).collect()
+    assert!(!files.is_empty(), "no .ogg recording in {}", dir.display());
+    files
+        .iter()
+        .map(|p| read(p, None).unwrap_or_else(|e| panic!("{}: {e}", p.display())))
+        .collect()
 }
 
 /// What each sample of a bench took per unit of work (a sample of audio, a channel's
@@ -80,4 +94,17 @@ impl Samples {
 #[must_use]
 pub fn channels_per_core(seconds_per_sample: f64, rate: f64) -> f64 {
     1.0 / (seconds_per_sample * rate)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    #[should_panic(
+        expected = "this bench times the shared recordings of no-such-ground, which are not at"
+    )]
+    fn missing_recordings_fail_loudly() {
+        let _ = shared_recordings("no-such-ground");
+    }
 }
