@@ -65,6 +65,41 @@ impl FittedTitle {
 pub(super) fn title_room(width: u32) -> i32 {
     width as i32 - 24
 }
+
+/// Where `title` ends in a panel `width` pixels wide, made to fit as
+/// [`draw_title_and_legend`] draws it: what a legend beside it must clear.
+pub(super) fn panel_title_end(title: &str, width: u32) -> i32 {
+    FittedTitle::new(title, title_room(width)).end()
+}
+
+/// Labels along a time axis, in a few rows: each takes the first row where it clears
+/// the label before it, moved left to end before `right`; one that finds no row is left
+/// out (its mark still shows) rather than drawn over another. A spectrogram's segments
+/// and a timeline's markers are labelled this way.
+pub(super) struct LabelRows<const ROWS: usize> {
+    /// Where each row is free from, pixels.
+    free: [i32; ROWS],
+    /// Space kept after each label, pixels.
+    gap: i32,
+}
+
+impl<const ROWS: usize> LabelRows<ROWS> {
+    pub fn new(gap: i32) -> Self {
+        Self {
+            free: [i32::MIN; ROWS],
+            gap,
+        }
+    }
+
+    /// The row and left end of a label `width` pixels wide meant to start at `x`, or
+    /// `None` when no row has room for it.
+    pub fn place(&mut self, x: i32, width: i32, right: i32) -> Option<(usize, i32)> {
+        let x = x.min(right - width);
+        let row = self.free.iter().position(|&free| free <= x)?;
+        self.free[row] = x + width + self.gap;
+        Some((row, x))
+    }
+}
 /// The size of a legend's labels, pixels.
 const LEGEND_FONT_PX: f64 = 13.0;
 /// The height of each legend row below the title row, pixels.
@@ -291,6 +326,20 @@ pub(super) fn magnitude_chart<'a, DB: DrawingBackend>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn labels_take_the_first_free_row_stay_left_of_the_edge_or_are_left_out() {
+        let mut rows = LabelRows::<2>::new(10);
+        assert_eq!(rows.place(0, 50, 500), Some((0, 0)));
+        assert_eq!(rows.place(30, 50, 500), Some((1, 30)));
+        // Row 0 is free from 60: a label at 60 takes it again.
+        assert_eq!(rows.place(60, 50, 500), Some((0, 60)));
+        // Both rows busy: left out, and nothing changes.
+        assert_eq!(rows.place(80, 50, 500), None);
+        assert_eq!(rows.place(90, 50, 500), Some((1, 90)));
+        // Past the edge: moved left to end at it.
+        assert_eq!(rows.place(480, 50, 500), Some((0, 450)));
+    }
 
     #[test]
     fn a_title_shrinks_to_fit_then_is_cut_short() {

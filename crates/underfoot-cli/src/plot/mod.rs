@@ -262,9 +262,10 @@ fn write_figure(
 }
 
 /// Writes 8-bit RGB pixels, row by row, as a PNG that says it is `96 × scale` dots per
-/// inch, so that a scaled figure prints at the base figure's size, only sharper. plotters draws into the buffer; the
-/// encoding is the `png` crate's, called here rather than through plotters' own encoder,
-/// which would bring the whole `image` crate (JPEG, BMP...) into every build for this.
+/// inch, so that a scaled figure prints at the base figure's size, only sharper.
+/// plotters draws into the buffer; the encoding is the `png` crate's, called here rather
+/// than through plotters' own encoder, which would bring the whole `image` crate (JPEG,
+/// BMP...) into every build for this.
 fn write_png(
     path: &Path,
     (width, height): (u32, u32),

@@ -8,7 +8,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::axes::{
-    FittedTitle, LegendEntry, draw_title_and_legend, magnitude_chart, place_legend, title_room,
+    LegendEntry, draw_title_and_legend, magnitude_chart, panel_title_end, place_legend,
 };
 use super::layout::AxisSpan;
 use super::{Drawn, FLOOR_DB, Figure, PANEL_SIZE, Scale, draw, ink, write_figure};
@@ -120,8 +120,7 @@ impl Figure for Responses<'_> {
         let (floor, top) = self.db_range();
         let (w, _) = area.dim_in_pixel();
         let legend = self.legend();
-        let title_end = FittedTitle::new(self.title, title_room(w)).end();
-        let placement = place_legend(w, title_end, &legend);
+        let placement = place_legend(w, panel_title_end(self.title, w), &legend);
         if self.show_text {
             draw_title_and_legend(area, self.title, &legend, &placement, ink)?;
         }

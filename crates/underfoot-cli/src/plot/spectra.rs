@@ -11,7 +11,7 @@ use plotters::prelude::*;
 use underfoot::material::FitRecord;
 
 use super::axes::{
-    FittedTitle, LegendEntry, draw_title_and_legend, magnitude_chart, place_legend, title_room,
+    LegendEntry, draw_title_and_legend, magnitude_chart, panel_title_end, place_legend,
 };
 use super::layout::AxisSpan;
 use super::{Canvas, Drawn, FLOOR_DB, Figure, PANEL_SIZE, Scale, draw, ink, write_figure};
@@ -75,7 +75,7 @@ fn render(
         ranges: ranges(panels, y),
         title_end: panels
             .iter()
-            .map(|p| FittedTitle::new(&p.title, title_room(PANEL_SIZE.0)).end())
+            .map(|p| panel_title_end(&p.title, PANEL_SIZE.0))
             .max()
             .unwrap_or(0),
         show_text: canvas.show_text,

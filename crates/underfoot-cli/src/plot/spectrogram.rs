@@ -14,7 +14,7 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 use underfoot::signal::spectrum::Spectrogram;
 use underfoot::units::{Decibels, Hz, SampleRate};
 
-use super::axes::{FittedTitle, log_grid, text_width, time_decimals, title_room};
+use super::axes::{FittedTitle, LabelRows, log_grid, text_width, time_decimals, title_room};
 use super::font::FAMILY;
 use super::layout::AxisSpan;
 use super::{Canvas, Drawn, Figure, Format, Scale, TITLE_HEIGHT, draw, ink, write_figure};
@@ -398,7 +398,7 @@ fn draw_spectrogram_on<DB: DrawingBackend>(
     // that neighbours part; its label sits above, in the first of two lanes it fits in.
     let plot_top = chart.backend_coord(&(0.0, top_hz)).1;
     let x_of = |t: f64| chart.backend_coord(&(t, top_hz)).0;
-    let mut lane_free = [i32::MIN; 2];
+    let mut lanes = LabelRows::<2>::new(10);
     let shown = plot
         .segments
         .iter()
@@ -414,15 +414,12 @@ fn draw_spectrogram_on<DB: DrawingBackend>(
             continue;
         }
         // Text is not measured (SVG needs no font): 0.6 em a character is generous for
-        // sans-serif, so labels judged apart do not touch. A label near the right end is
-        // moved left to stay on the figure; one with no free lane is left out (its bar
-        // still shows where the segment is) rather than drawn over another.
+        // sans-serif, so labels judged apart do not touch. A label with no free lane is
+        // left out: its bar still shows where the segment is.
         let width = text_width(s.label, LABEL_FONT_PX);
-        let x = (x0 + 2).min(w as i32 - 8 - width);
-        let Some(lane) = lane_free.iter().position(|&free| free <= x) else {
+        let Some((lane, x)) = lanes.place(x0 + 2, width, w as i32 - 8) else {
             continue;
         };
-        lane_free[lane] = x + width + 10;
         root.draw(&Text::new(
             s.label.to_string(),
             (x, plot_top - 8 - (lane as u32 * LANE_HEIGHT) as i32),

@@ -14,7 +14,7 @@ use plotters::prelude::*;
 use underfoot::analysis::steps::{StepConfig, StepSummary};
 
 use super::axes::{
-    FittedTitle, LegendEntry, LegendPlacement, draw_title_and_legend, place_legend, title_room,
+    LegendEntry, LegendPlacement, draw_title_and_legend, panel_title_end, place_legend,
 };
 use super::font::FAMILY;
 use super::layout::AxisSpan;
@@ -106,7 +106,7 @@ fn render(path: &Path, canvas: Canvas, panels: &[StepPanel<'_>]) -> anyhow::Resu
     let cfg = StepConfig::default();
     let widest = panels
         .iter()
-        .map(|p| FittedTitle::new(&p.title, title_room(STEP_PANEL_SIZE.0)).end())
+        .map(|p| panel_title_end(&p.title, STEP_PANEL_SIZE.0))
         .max()
         .unwrap_or(0);
     let figure = Steps {

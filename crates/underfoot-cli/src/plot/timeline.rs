@@ -9,7 +9,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::axes::{
-    FittedTitle, LegendEntry, draw_title_and_legend, place_legend, text_width, title_room,
+    LabelRows, LegendEntry, draw_title_and_legend, panel_title_end, place_legend, text_width,
 };
 use super::font::FAMILY;
 use super::layout::AxisSpan;
@@ -144,8 +144,7 @@ impl Figure for Drawing<'_> {
             patch: None,
         });
         let (w, _) = root.dim_in_pixel();
-        let title_end = FittedTitle::new(&t.title, title_room(w)).end();
-        let placement = place_legend(w, title_end, &legend);
+        let placement = place_legend(w, panel_title_end(&t.title, w), &legend);
         if self.show_text {
             draw_title_and_legend(root, &t.title, &legend, &placement, ink)?;
         }
@@ -230,23 +229,19 @@ impl Figure for Drawing<'_> {
             let (x0, _) = force.backend_coord(&(self.span.start, 0.0));
             let (x1, _) = force.backend_coord(&(self.span.end, 0.0));
             let (lx, _) = labels.get_base_pixel();
-            // Each label in the first row where it clears the one before it, moved left
-            // to stay on the figure; one that finds no row is left out (its dashed line
-            // still shows, and the record keeps every marker's label) rather than drawn
-            // over another.
+            // A label with no room is left out: its dashed line still shows, and the
+            // record keeps every marker's label.
             let (label_w, _) = labels.dim_in_pixel();
-            let mut row_free = [i32::MIN; LABEL_ROWS];
+            let mut rows = LabelRows::<LABEL_ROWS>::new(6);
             let mut order: Vec<&TimelineMarker> = t.markers.iter().collect();
             order.sort_by(|a, b| a.time.total_cmp(&b.time));
             for m in order {
                 let frac = (m.time - self.span.start) / (self.span.end - self.span.start);
+                let at = x0 + ((x1 - x0) as f64 * frac) as i32 - lx + 3;
                 let width = text_width(&m.label, 12.0);
-                let x = (x0 + ((x1 - x0) as f64 * frac) as i32 - lx + 3)
-                    .min(label_w as i32 - 4 - width);
-                let Some(row) = (0..LABEL_ROWS).find(|&r| row_free[r] <= x) else {
+                let Some((row, x)) = rows.place(at, width, label_w as i32 - 4) else {
                     continue;
                 };
-                row_free[row] = x + width + 6;
                 labels.draw(&Text::new(
                     m.label.clone(),
                     (x, 2 + row as i32 * LABEL_ROW_PX as i32),
