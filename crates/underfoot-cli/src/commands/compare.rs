@@ -70,11 +70,8 @@ pub struct CompareArgs {
     /// Image format of the plots.
     #[arg(long, value_name = "svg|png", default_value = "svg", value_parser = ["svg", "png"])]
     plot_format: String,
-    /// Draw figures K times their base size, lines, text and pixels alike (2.5: a
-    /// 720x420 panel at 1800x1050; a PNG records 96 x K dpi, so it prints at the base
-    /// size, sharper).
-    #[arg(long, value_name = "K", default_value = "1")]
-    plot_scale: crate::plot::Scale,
+    #[command(flatten)]
+    plot_scale: crate::plot::PlotScale,
     /// Steps of a generated walk rendered per material and model for the table in time.
     #[arg(long, default_value_t = 48, value_name = "N", value_parser = clap::value_parser!(u32).range(2..=200))]
     steps: u32,
@@ -286,7 +283,7 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
             let drawn = out.write_with(|p| {
                 plot::draw_spectra(
                     p,
-                    args.plot_scale,
+                    args.plot_scale.get(),
                     &[Panel {
                         title,
                         fit: &model.fit,

@@ -59,11 +59,8 @@ pub struct DemoArgs {
     /// Image format of the plots.
     #[arg(long, value_name = "svg|png", default_value = "svg", value_parser = ["svg", "png"])]
     plot_format: String,
-    /// Draw figures K times their base size, lines, text and pixels alike (2.5: a
-    /// 720x420 panel at 1800x1050; a PNG records 96 x K dpi, so it prints at the base
-    /// size, sharper).
-    #[arg(long, value_name = "K", default_value = "1")]
-    plot_scale: crate::plot::Scale,
+    #[command(flatten)]
+    plot_scale: crate::plot::PlotScale,
     #[command(flatten)]
     synth: SynthArgs,
 }
@@ -321,7 +318,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         .write_with(|p| {
             plot::draw_spectrogram(
                 p,
-                args.plot_scale,
+                args.plot_scale.get(),
                 &format!(
                     "A walk across {which}, played by {}",
                     match args.synth.model {
@@ -351,7 +348,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         })
         .collect();
     spectra_out
-        .write_with(|p| plot::draw_spectra(p, args.plot_scale, &panels, args.y_range))?
+        .write_with(|p| plot::draw_spectra(p, args.plot_scale.get(), &panels, args.y_range))?
         .report(path);
 
     let steps_path = steps_out.path().to_path_buf();
@@ -375,7 +372,7 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         })
         .collect();
     steps_out
-        .write_with(|p| plot::draw_steps(p, args.plot_scale, &step_panels))?
+        .write_with(|p| plot::draw_steps(p, args.plot_scale.get(), &step_panels))?
         .report(&steps_path);
     emit(&format!(
         "\nwalk: {}\nforce: {}\nspectrogram: {}\nspectra: {}\nsteps: {}\nreport: {}\n",

@@ -60,11 +60,8 @@ pub struct FitArgs {
     /// Default: no figure.
     #[arg(long, value_name = "P.svg|P.png")]
     plot: Option<PathBuf>,
-    /// Draw figures K times their base size, lines, text and pixels alike (2.5: a
-    /// 720x420 panel at 1800x1050; a PNG records 96 x K dpi, so it prints at the base
-    /// size, sharper).
-    #[arg(long, value_name = "K", default_value = "1")]
-    plot_scale: crate::plot::Scale,
+    #[command(flatten)]
+    plot_scale: crate::plot::PlotScale,
     /// Analysis sample rate in Hz [default: 2000].
     #[arg(long = "analysis-rate", value_name = "HZ", value_parser = parse_analysis_rate)]
     rate: Option<SampleRate>,
@@ -547,7 +544,7 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
             .write_with(|p| {
                 plot::draw_spectra(
                     p,
-                    args.plot_scale,
+                    args.plot_scale.get(),
                     &[Panel {
                         title,
                         fit: &model.fit,

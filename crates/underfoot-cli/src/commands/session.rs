@@ -36,11 +36,8 @@ pub struct ShowArgs {
     /// Default: no figure.
     #[arg(long, value_name = "FILE")]
     plot: Option<PathBuf>,
-    /// Draw figures K times their base size, lines, text and pixels alike (2.5: a
-    /// 720x420 panel at 1800x1050; a PNG records 96 x K dpi, so it prints at the base
-    /// size, sharper).
-    #[arg(long, value_name = "K", default_value = "1")]
-    plot_scale: crate::plot::Scale,
+    #[command(flatten)]
+    plot_scale: crate::plot::PlotScale,
 }
 
 /// Runs `underfoot session`.
@@ -76,7 +73,7 @@ fn show(args: &ShowArgs) -> anyhow::Result<()> {
     emit(&summary(&record, output.as_ref()))?;
     if let Some(out) = plot_out {
         let timeline = timeline(&record, output.as_ref());
-        plot::draw_timeline(out.path(), args.plot_scale, &timeline)?.report(out.path());
+        plot::draw_timeline(out.path(), args.plot_scale.get(), &timeline)?.report(out.path());
         eprintln!("underfoot: wrote {}", out.path().display());
     }
     Ok(())

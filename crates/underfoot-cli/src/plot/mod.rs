@@ -177,6 +177,22 @@ impl std::str::FromStr for Scale {
     }
 }
 
+/// `--plot-scale K`, the same on every command that draws.
+#[derive(Debug, Clone, clap::Args)]
+pub struct PlotScale {
+    /// Draw figures K times their base size, lines, text and pixels alike (2.5: a
+    /// 720x420 panel at 1800x1050; a PNG records 96 x K dpi, so it prints at the base
+    /// size, sharper).
+    #[arg(long = "plot-scale", value_name = "K", default_value = "1")]
+    scale: Scale,
+}
+
+impl PlotScale {
+    pub fn get(&self) -> Scale {
+        self.scale
+    }
+}
+
 /// How a figure is drawn: its file's format, whether text can be drawn, and its scale.
 #[derive(Debug, Clone, Copy)]
 struct Canvas {

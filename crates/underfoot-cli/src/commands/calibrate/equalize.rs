@@ -90,11 +90,8 @@ pub struct EqualizeArgs {
     /// Default: no figure.
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
-    /// Draw figures K times their base size, lines, text and pixels alike (2.5: a
-    /// 720x420 panel at 1800x1050; a PNG records 96 x K dpi, so it prints at the base
-    /// size, sharper).
-    #[arg(long, value_name = "K", default_value = "1")]
-    pub plot_scale: crate::plot::Scale,
+    #[command(flatten)]
+    pub plot_scale: crate::plot::PlotScale,
     #[command(flatten)]
     pub settings: SweepSettings,
 }
@@ -202,7 +199,7 @@ pub(super) fn run(args: &EqualizeArgs) -> anyhow::Result<()> {
         eq.best
     ))?;
     if let Some(plot_out) = &plot_out {
-        draw_passes(plot_out, args.plot_scale, &eq)?;
+        draw_passes(plot_out, args.plot_scale.get(), &eq)?;
     }
     Ok(())
 }

@@ -32,11 +32,8 @@ pub struct LimbArgs {
     /// Default: no figure.
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
-    /// Draw figures K times their base size, lines, text and pixels alike (2.5: a
-    /// 720x420 panel at 1800x1050; a PNG records 96 x K dpi, so it prints at the base
-    /// size, sharper).
-    #[arg(long, value_name = "K", default_value = "1")]
-    pub plot_scale: crate::plot::Scale,
+    #[command(flatten)]
+    pub plot_scale: crate::plot::PlotScale,
 }
 
 /// Runs `underfoot calibrate limb`.
@@ -138,7 +135,7 @@ pub(super) fn run(args: &LimbArgs) -> anyhow::Result<()> {
             plot_out.write_with(|p| {
                 draw_responses(
                     p,
-                    args.plot_scale,
+                    args.plot_scale.get(),
                     "Loaded response and the limb model H_u",
                     if args.unloaded.is_some() {
                         "magnitude (dB re unloaded device)"

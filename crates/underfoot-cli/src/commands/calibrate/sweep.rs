@@ -112,11 +112,8 @@ pub struct SweepArgs {
     /// Default: no figure.
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
-    /// Draw figures K times their base size, lines, text and pixels alike (2.5: a
-    /// 720x420 panel at 1800x1050; a PNG records 96 x K dpi, so it prints at the base
-    /// size, sharper).
-    #[arg(long, value_name = "K", default_value = "1")]
-    pub plot_scale: crate::plot::Scale,
+    #[command(flatten)]
+    pub plot_scale: crate::plot::PlotScale,
     #[command(flatten)]
     pub settings: SweepSettings,
 }
@@ -184,7 +181,7 @@ pub(super) fn run(args: &SweepArgs) -> anyhow::Result<()> {
             plot_out.write_with(|p| {
                 draw_responses(
                     p,
-                    args.plot_scale,
+                    args.plot_scale.get(),
                     "Frequency response (relative to its mean)",
                     "magnitude (dB re its mean in the band)",
                     &curves,
