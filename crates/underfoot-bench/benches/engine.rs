@@ -4,6 +4,10 @@
 //!   low-pass and the DC-blocking high-pass) for one second at 48 kHz, walking (a strike
 //!   every half second). Criterion's throughput is voice-samples per second; divided by
 //!   48 000 it is the number of channels one core runs in real time.
+//! - `voice/order-12, 8 channels in lanes`: the same voice on eight channels, run together
+//!   in 64-frame blocks as the engine runs its channels (`synthesis::VoiceLanes`); its
+//!   throughput is channel-samples per second. The bench prints both as channels per
+//!   core, and their ratio.
 //! - `voice/order-12 modes only`: the same without the post filter, to show its share.
 //! - `engine/64-frame block`: the whole engine (event handling, 16 channels walking,
 //!   limiter, fades) for one 64-frame block; against the block's 1.33 ms of real time.
@@ -40,7 +44,10 @@ use underfoot::force::drive::DriveKind;
 use underfoot::force::gait::{GaitConfig, generate, nominal_step};
 use underfoot::material::builtin::builtin;
 use underfoot::signal::noise::SplitMix64;
-use underfoot::synthesis::{ExcitationChoice, PreparedMaterial, SynthModel, Voice, VoiceConfig};
+use underfoot::synthesis::{
+    ExcitationChoice, LANE_WIDTH, Lane, PreparedMaterial, SynthModel, Voice, VoiceConfig,
+    VoiceLanes,
+};
 use underfoot::units::{Newtons, SampleRate, Seconds};
 use underfoot_bench::{Samples, channels_per_core};
 
@@ -59,12 +66,57 @@ fn voice(c: &mut Criterion) {
     let mut rng = SplitMix64::new(1);
     let mut group = c.benchmark_group("voice");
     group.throughput(Throughput::Elements(x.len() as u64));
+    let mut alone = Samples::default();
     group.bench_function("order-12", |b| {
-        b.iter(|| {
-            v.perturb(&mut rng, 0.01);
-            black_box(v.process(black_box(&x), &mut y));
+        b.iter_custom(|iterations| {
+            alone.time(iterations, || {
+                v.perturb(&mut rng, 0.01);
+                black_box(v.process(black_box(&x), &mut y));
+                x.len() as u64
+            })
         });
     });
+    // The same voice on eight channels, run together as the engine runs them, in its
+    // 64-frame blocks.
+    let mut voices: Vec<Voice> = (0..LANE_WIDTH).map(|_| v.clone()).collect();
+    let mut ys = vec![vec![0.0f32; x.len()]; LANE_WIDTH];
+    let mut lanes = VoiceLanes::new();
+    let mut laned = Samples::default();
+    group.throughput(Throughput::Elements((x.len() * LANE_WIDTH) as u64));
+    group.bench_function("order-12, 8 channels in lanes", |b| {
+        b.iter_custom(|iterations| {
+            laned.time(iterations, || {
+                for v in &mut voices {
+                    v.perturb(&mut rng, 0.01);
+                }
+                for start in (0..x.len()).step_by(64) {
+                    let input = black_box(&x[start..start + 64]);
+                    let mut args: [Option<Lane<'_>>; LANE_WIDTH] = Default::default();
+                    for ((arg, voice), y) in args.iter_mut().zip(&mut voices).zip(&mut ys) {
+                        *arg = Some(Lane {
+                            voice,
+                            input,
+                            output: &mut y[start..start + 64],
+                        });
+                    }
+                    black_box(lanes.process(&mut args));
+                }
+                (x.len() * LANE_WIDTH) as u64
+            })
+        });
+    });
+    group.throughput(Throughput::Elements(x.len() as u64));
+    if let (Some(alone), Some(laned)) = (alone.median(100), laned.median(100)) {
+        println!(
+            "\nAn order-12 voice at 48 kHz: alone {:.2} ns a sample = {:.0} channels/core; \
+             8 in lanes {:.2} ns a channel's sample = {:.0} channels/core ({:.2}x)",
+            alone * 1e9,
+            channels_per_core(alone, RATE.hz()),
+            laned * 1e9,
+            channels_per_core(laned, RATE.hz()),
+            alone / laned
+        );
+    }
     let bare = PreparedMaterial::prepare(
         model,
         RATE,

@@ -5,7 +5,7 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering;
 
 use crate::safety::{Fader, LimiterReport};
-use crate::synthesis::PreparedMaterial;
+use crate::synthesis::{LANE_WIDTH, Lane, PreparedMaterial, VoiceLanes};
 use crate::units::SampleRate;
 
 use super::channel::Channel;
@@ -14,6 +14,34 @@ use super::controller::{Command, Retired};
 use super::event::StrikeRecord;
 use super::telemetry::BlockLevels;
 use super::{Event, OutputStage, Telemetry};
+
+/// Partial sums of a channel's meter: as many as a vector holds.
+const METER_LANES: usize = 8;
+
+/// The peak and the energy (sum of squares) of a block the output stage has made
+/// finite. In `METER_LANES` partial sums (the maximum does not depend on the order, the
+/// energy only in its last bits): a single running sum would make every sample wait
+/// for the previous one's addition.
+fn levels(buf: &[f32]) -> (f32, f64) {
+    let mut peak = [0.0f32; METER_LANES];
+    let mut energy = [0.0f32; METER_LANES];
+    let chunks = buf.chunks_exact(METER_LANES);
+    let rest = chunks.remainder();
+    for chunk in chunks {
+        for c in 0..METER_LANES {
+            peak[c] = peak[c].max(chunk[c].abs());
+            energy[c] += chunk[c] * chunk[c];
+        }
+    }
+    for (c, v) in rest.iter().enumerate() {
+        peak[c] = peak[c].max(v.abs());
+        energy[c] += v * v;
+    }
+    (
+        peak.iter().fold(0.0, |m, v| m.max(*v)),
+        energy.iter().map(|e| f64::from(*e)).sum(),
+    )
+}
 
 /// The audio half. Move it into the audio callback.
 pub struct Engine {
@@ -35,6 +63,9 @@ pub struct Engine {
     pub(super) strike_log: rtrb::Producer<StrikeRecord>,
     pub(super) telemetry: Arc<Telemetry>,
     pub(super) scratch: Vec<f32>,
+    /// Runs the channels' IIR voices, [`LANE_WIDTH`] at a time: one for each
+    /// [`LANE_WIDTH`] channels, each keeping its channels' coefficients between blocks.
+    pub(super) lanes: Vec<VoiceLanes>,
     pub(super) peak: f32,
     pub(super) clock: SensorClock,
 }
@@ -234,36 +265,40 @@ impl Engine {
         for g in fade.iter_mut() {
             *g = self.fader.tick() * self.gain;
         }
-        let mut channel_buf = [0.0f32; 64];
+        for channel in &mut self.channels {
+            channel.prepare(n);
+        }
+        // The IIR voices of all channels together, a lane each (`synthesis::voice::lanes`).
+        for (chunk, runner) in self
+            .channels
+            .chunks_mut(LANE_WIDTH)
+            .zip(self.lanes.iter_mut())
+        {
+            let mut lanes: [Option<Lane<'_>>; LANE_WIDTH] = Default::default();
+            for (lane, channel) in lanes.iter_mut().zip(chunk.iter_mut()) {
+                *lane = channel.lane(n);
+            }
+            resets += runner.process(&mut lanes);
+        }
         for (c, (channel, stage)) in self
             .channels
             .iter_mut()
             .zip(self.stages.iter_mut())
             .enumerate()
         {
-            // Render in sub-blocks through a stack buffer: no per-channel output storage.
             // A channel without a device channel still runs, so its state stays in time.
-            let mut start = 0;
             let mut channel_report = LimiterReport::default();
             let mut channel_peak = 0.0f32;
-            let mut energy = 0.0f64;
-            let mut drive = 0.0f32;
-            while start < n {
-                let len = (n - start).min(channel_buf.len());
-                let buf = &mut channel_buf[..len];
-                resets += channel.render(buf);
-                drive = drive.max(channel.drive_peak());
-                resets += stage.process(buf, &fade[start..start + len], &mut channel_report);
-                if c < device_channels {
-                    let mut sub_energy = 0.0f32;
-                    for (i, v) in buf.iter().enumerate() {
-                        channel_peak = channel_peak.max(v.abs());
-                        sub_energy += v * v;
-                        out[(start + i) * device_channels + c] = *v;
-                    }
-                    energy += f64::from(sub_energy);
+            let mut energy = 0.0;
+            let drive = channel.drive_peak();
+            let (buf, finish_resets) = channel.finish(n);
+            resets += finish_resets;
+            resets += stage.process(buf, fade, &mut channel_report);
+            if c < device_channels {
+                (channel_peak, energy) = levels(buf);
+                for (frame, v) in out.chunks_exact_mut(device_channels).zip(buf.iter()) {
+                    frame[c] = *v;
                 }
-                start += len;
             }
             // A channel that is not played runs its stage to keep it in time, but what its
             // limiter does is nobody's concern.

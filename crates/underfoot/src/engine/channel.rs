@@ -16,7 +16,7 @@ use crate::force::drive::{DriveKind, Polarity};
 use crate::force::steps::{ReadingTime, StepDetector};
 use crate::physical::Ground;
 use crate::signal::noise::SplitMix64;
-use crate::synthesis::{PreparedMaterial, Voice};
+use crate::synthesis::{Lane, PreparedMaterial, Voice};
 use crate::units::Seconds;
 
 /// A channel's state. All buffers are sized at construction; rendering never allocates.
@@ -214,29 +214,42 @@ impl Channel {
         }
     }
 
-    /// Renders `out.len()` samples (at most `max_block`): the synthesis only; the engine's
-    /// output stage ([`super::OutputStage`]) takes it from there. Returns
-    /// non-finite resets.
-    pub(super) fn render(&mut self, out: &mut [f32]) -> u32 {
-        let n = out.len().min(self.drive_buf.len());
+    /// The first part of rendering `n` samples (at most `max_block`): the block's drive
+    /// and excitation. Then [`lane`](Self::lane) (the engine runs the IIR voices of all
+    /// channels together) and [`finish`](Self::finish).
+    pub(super) fn prepare(&mut self, n: usize) {
+        let n = n.min(self.drive_buf.len());
         let drive = &mut self.drive_buf[..n];
         let excitation = &mut self.excitation_buf[..n];
         // The clock speeds first, then the whole block of excitation: the generator's
-        // state stays in registers through its own loop.
-        for (x, e) in drive.iter_mut().zip(excitation.iter_mut()) {
-            let total = self.conditioner.next_total();
-            *e = (total - self.previous_total).abs() * self.speed_per_newton;
-            if self.drive != DriveKind::Impulse {
+        // state stays in registers through its own loop. The force's state is copied
+        // out for the loop for the same reason: written through `self`, it would have
+        // to be stored at every sample, as the compiler cannot tell it from the buffers.
+        let mut conditioner = self.conditioner.clone();
+        let mut previous = self.previous_total;
+        let speed_per_newton = self.speed_per_newton;
+        if self.drive == DriveKind::Impulse {
+            for e in excitation.iter_mut() {
+                let total = conditioner.next_total();
+                *e = (total - previous).abs() * speed_per_newton;
+                previous = total;
+            }
+        } else {
+            for (x, e) in drive.iter_mut().zip(excitation.iter_mut()) {
+                let total = conditioner.next_total();
+                *e = (total - previous).abs() * speed_per_newton;
                 *x = self.drive.sample(
                     f64::from(total),
-                    f64::from(self.previous_total),
+                    f64::from(previous),
                     self.rate_hz,
                     self.polarity,
                     self.weight,
                 ) as f32;
+                previous = total;
             }
-            self.previous_total = total;
         }
+        self.conditioner = conditioner;
+        self.previous_total = previous;
         self.excitation.process_in_place(&self.tables, excitation);
         if self.drive == DriveKind::Impulse {
             drive.copy_from_slice(excitation);
@@ -255,63 +268,78 @@ impl Channel {
         }
         // `max` ignores a NaN, so the meter's bits stay those of a finite value.
         self.drive_peak = drive.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    }
+
+    /// The current voice on the block's drive, when the channel plays a material through
+    /// its IIR voice: the engine runs it in a lane beside other channels'.
+    pub(super) fn lane(&mut self, n: usize) -> Option<Lane<'_>> {
+        let n = n.min(self.drive_buf.len());
+        if self.slot.is_none() || self.physical[self.current] {
+            return None;
+        }
+        Some(Lane {
+            voice: &mut self.voices[self.current],
+            input: &self.drive_buf[..n],
+            output: &mut self.out_a[..n],
+        })
+    }
+
+    /// The rest of the block, once the current voice has run in its [`lane`](Self::lane):
+    /// the physical model when the channel plays one, the fading voice and the
+    /// crossfade. Returns the block's synthesis and the non-finite resets; the engine's
+    /// output stage ([`super::OutputStage`]) takes it from there.
+    pub(super) fn finish(&mut self, n: usize) -> (&mut [f32], u32) {
+        let n = n.min(self.drive_buf.len());
         let mut resets = 0;
         if self.slot.is_none() {
-            out[..n].fill(0.0);
+            self.out_a[..n].fill(0.0);
+            return (&mut self.out_a[..n], 0);
+        }
+        let (cur, old) = (self.current, 1 - self.current);
+        let drive = &self.drive_buf[..n];
+        let excitation = &self.excitation_buf[..n];
+        let [ground_a, ground_b] = match &mut self.grounds {
+            Some([a, b]) => [Some(a), Some(b)],
+            None => [None, None],
+        };
+        let (ground_cur, ground_old) = if cur == 0 {
+            (ground_a, ground_b)
         } else {
-            let (cur, old) = (self.current, 1 - self.current);
-            let excitation = &self.excitation_buf[..n];
-            let [ground_a, ground_b] = match &mut self.grounds {
-                Some([a, b]) => [Some(a), Some(b)],
-                None => [None, None],
-            };
-            let (ground_cur, ground_old) = if cur == 0 {
-                (ground_a, ground_b)
-            } else {
-                (ground_b, ground_a)
-            };
-            let [voice_a, voice_b] = &mut self.voices;
-            let (voice_cur, voice_old) = if cur == 0 {
-                (voice_a, voice_b)
-            } else {
-                (voice_b, voice_a)
-            };
+            (ground_b, ground_a)
+        };
+        let voice_old = &mut self.voices[old];
+        if self.physical[cur]
+            && let Some(ground) = ground_cur
+        {
+            resets += ground.process(excitation, &mut self.out_a[..n]);
+        }
+        if self.fade_left > 0 {
             resets += play(
-                voice_cur,
-                ground_cur.filter(|_| self.physical[cur]),
+                voice_old,
+                ground_old.filter(|_| self.physical[old]),
                 drive,
                 excitation,
-                &mut self.out_a[..n],
+                &mut self.out_b[..n],
             );
-            if self.fade_left > 0 {
-                resets += play(
-                    voice_old,
-                    ground_old.filter(|_| self.physical[old]),
-                    drive,
-                    excitation,
-                    &mut self.out_b[..n],
-                );
-                for i in 0..n {
-                    // Equal-power crossfade: the two materials' signals are uncorrelated.
-                    let t = if self.fade_left > 0 {
-                        self.fade_left -= 1;
-                        self.fade_left as f32 / self.fade_len as f32
-                    } else {
-                        0.0
-                    };
-                    let angle = t * std::f32::consts::FRAC_PI_2;
-                    self.out_a[i] = self.out_a[i] * angle.cos() + self.out_b[i] * angle.sin();
-                }
-                if self.fade_left == 0 {
-                    self.voices[old].reset();
-                    if let Some(grounds) = &mut self.grounds {
-                        grounds[old].reset();
-                    }
+            for i in 0..n {
+                // Equal-power crossfade: the two materials' signals are uncorrelated.
+                let t = if self.fade_left > 0 {
+                    self.fade_left -= 1;
+                    self.fade_left as f32 / self.fade_len as f32
+                } else {
+                    0.0
+                };
+                let angle = t * std::f32::consts::FRAC_PI_2;
+                self.out_a[i] = self.out_a[i] * angle.cos() + self.out_b[i] * angle.sin();
+            }
+            if self.fade_left == 0 {
+                self.voices[old].reset();
+                if let Some(grounds) = &mut self.grounds {
+                    grounds[old].reset();
                 }
             }
-            out[..n].copy_from_slice(&self.out_a[..n]);
         }
-        resets
+        (&mut self.out_a[..n], resets)
     }
 }
 

@@ -19,6 +19,13 @@
 //! its output below the configured gain, smoothly, before the limiter; it can never raise
 //! it.
 //!
+//! A block is rendered in three passes over the channels: each channel's force and
+//! excitation; then the IIR voices of all channels, eight at a time, one per SIMD lane
+//! ([`VoiceLanes`], which gives each voice the same bits as running it alone); then
+//! each channel's physical model or fading voice, and its output stage. The output
+//! stage takes a live, settled stretch with nothing near the ceiling as one vector
+//! loop ([`OutputStage::process`]), the same products it forms sample by sample.
+//!
 //! The [`Telemetry`] has a meter per channel that the audio thread writes once per block
 //! with relaxed atomics and a reader takes at its own pace: the last reading's force per
 //! sensor, strikes, the output's peak and its RMS over exactly the reader's interval, the
@@ -92,7 +99,7 @@ pub use event::{Event, StrikeRecord, TimedEvent};
 use crate::compensation::CompensationError;
 use crate::compensation::chain::CompensationChain;
 use crate::safety::Fader;
-use crate::synthesis::PreparedMaterial;
+use crate::synthesis::{LANE_WIDTH, PreparedMaterial, VoiceLanes};
 pub use audio::Engine;
 pub use bank::MaterialBank;
 use channel::Channel;
@@ -213,6 +220,7 @@ pub fn build(
         strike_log: strike_tx,
         telemetry: Arc::clone(&telemetry),
         scratch: vec![0.0; config.max_block],
+        lanes: vec![VoiceLanes::new(); config.channels.div_ceil(LANE_WIDTH)],
         peak: 0.0,
         clock: SensorClock::new(config.rate, config.sensor_latency),
     };

@@ -936,11 +936,14 @@ void uf_limiter_init(uf_limiter *limiter, float ceiling, float release) {
 }
 
 float uf_limiter_tick(uf_limiter *limiter, float x) {
-    float ax, peak, y;
+    float ax, peak, y, recovered;
     /* NaN and infinities: x - x is not 0. */
     if (!(x - x == 0.0f)) return 0.0f;
     ax = x < 0.0f ? -x : x;
-    limiter->gain += (1.0f - limiter->gain) * limiter->release;
+    /* The recovery stalls about 7e-5 short of 1, where its step rounds to nothing:
+     * there the release is over. */
+    recovered = limiter->gain + (1.0f - limiter->gain) * limiter->release;
+    limiter->gain = recovered == limiter->gain ? 1.0f : recovered;
     peak = ax * limiter->gain;
     if (peak > limiter->ceiling) limiter->gain = limiter->ceiling / ax;
     y = x * limiter->gain;

@@ -8,4 +8,7 @@ pub mod modal;
 pub mod voice;
 
 pub use modal::{ModalError, ModalFilter, PoleResidue};
-pub use voice::{ExcitationChoice, PreparedMaterial, SynthModel, Voice, VoiceConfig, VoiceError};
+pub use voice::{
+    ExcitationChoice, LANE_WIDTH, Lane, PreparedMaterial, SynthModel, Voice, VoiceConfig,
+    VoiceError, VoiceLanes,
+};

@@ -13,12 +13,15 @@
 //! | [`config`](mod@config) | the settings ([`VoiceConfig`], [`SynthModel`]) and the errors ([`VoiceError`]) |
 //! | [`prepared`](mod@prepared) | the material at the audio rate: modal form, residues, post filter, drive gains |
 //! | [`play`](mod@play) | the voice itself: the modal filter in `f32`, the perturbation, the audio loop |
+//! | [`lanes`](mod@lanes) | up to eight voices run together, one per SIMD lane, to the same bits |
 
 pub mod config;
+pub mod lanes;
 pub mod play;
 pub mod prepared;
 
 pub use config::{ExcitationChoice, SynthModel, VoiceConfig, VoiceError};
+pub use lanes::{LANE_WIDTH, Lane, VoiceLanes};
 pub use play::Voice;
 pub use prepared::PreparedMaterial;
 

@@ -32,6 +32,8 @@
 //! input, not the state, so a new step's coefficients never change the ringing of the
 //! previous one: no discontinuity at the switch.
 
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use num_complex::Complex64;
 
 use super::{LANES, MAX_MODES, MAX_POST_SECTIONS, PreparedMaterial, Section};
@@ -43,22 +45,33 @@ use crate::signal::noise::SplitMix64;
 #[derive(Debug, Clone)]
 pub struct Voice {
     /// Modes rounded up to a multiple of the SIMD width; the padding lanes are all zero.
-    lanes: usize,
-    pole_re: [f32; MAX_MODES],
-    pole_im: [f32; MAX_MODES],
-    base_re: [f32; MAX_MODES],
-    base_im: [f32; MAX_MODES],
-    res_re: [f32; MAX_MODES],
-    res_im: [f32; MAX_MODES],
-    state_re: [f32; MAX_MODES],
-    state_im: [f32; MAX_MODES],
-    base_direct: f32,
-    direct: f32,
-    sections: [Section; MAX_POST_SECTIONS],
-    section_count: usize,
-    gain: f32,
+    pub(super) lanes: usize,
+    pub(super) pole_re: [f32; MAX_MODES],
+    pub(super) pole_im: [f32; MAX_MODES],
+    pub(super) base_re: [f32; MAX_MODES],
+    pub(super) base_im: [f32; MAX_MODES],
+    pub(super) res_re: [f32; MAX_MODES],
+    pub(super) res_im: [f32; MAX_MODES],
+    pub(super) state_re: [f32; MAX_MODES],
+    pub(super) state_im: [f32; MAX_MODES],
+    pub(super) base_direct: f32,
+    pub(super) direct: f32,
+    pub(super) sections: [Section; MAX_POST_SECTIONS],
+    pub(super) section_count: usize,
+    pub(super) gain: f32,
     /// Samples processed since the material was loaded.
-    clock: u64,
+    pub(super) clock: u64,
+    /// Names the coefficients: a new value at every change, unique in the process (0
+    /// for a new voice's zeros), so that [`super::VoiceLanes`] copies them only when
+    /// they changed.
+    pub(super) generation: u64,
+}
+
+/// The source of [`Voice::generation`].
+static GENERATIONS: AtomicU64 = AtomicU64::new(1);
+
+fn next_generation() -> u64 {
+    GENERATIONS.fetch_add(1, Ordering::Relaxed)
 }
 
 impl Default for Voice {
@@ -69,9 +82,9 @@ impl Default for Voice {
 
 /// States below this are flushed to zero at the end of a block: a decayed mode would
 /// otherwise go subnormal, where arithmetic is a hundred times slower.
-const FLUSH: f32 = 1e-20;
+pub(super) const FLUSH: f32 = 1e-20;
 /// How many samples run between flushes.
-const FLUSH_EVERY: usize = 64;
+pub(super) const FLUSH_EVERY: usize = 64;
 
 impl Voice {
     /// A silent voice with no material.
@@ -93,6 +106,7 @@ impl Voice {
             section_count: 0,
             gain: 0.0,
             clock: 0,
+            generation: 0,
         }
     }
 
@@ -112,6 +126,7 @@ impl Voice {
         self.section_count = m.section_count;
         self.gain = m.drive_gain[drive.index()] * m.level;
         self.clock = 0;
+        self.generation = next_generation();
         self.reset();
     }
 
@@ -158,6 +173,7 @@ impl Voice {
             self.res_im[k] = draw(self.base_im[k]);
         }
         self.direct = draw(self.base_direct);
+        self.generation = next_generation();
     }
 
     /// The current (perturbed) numerators, for tests: real parts, imaginary parts, direct.
