@@ -4,6 +4,7 @@
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 
+use crate::numeric::peak_abs;
 use crate::safety::{Fader, LimiterReport};
 use crate::synthesis::{LANE_WIDTH, Lane, PreparedMaterial, VoiceLanes};
 use crate::units::SampleRate;
@@ -15,32 +16,24 @@ use super::event::StrikeRecord;
 use super::telemetry::BlockLevels;
 use super::{Event, OutputStage, Telemetry};
 
-/// Partial sums of a channel's meter: as many as a vector holds.
+/// Partial sums of a channel's energy meter: as many as a vector holds.
 const METER_LANES: usize = 8;
 
 /// The peak and the energy (sum of squares) of a block the output stage has made
-/// finite. In `METER_LANES` partial sums (the maximum does not depend on the order, the
-/// energy only in its last bits): a single running sum would make every sample wait
-/// for the previous one's addition.
+/// finite. The energy in `METER_LANES` partial sums, which changes only its last bits:
+/// a single running sum would make every sample wait for the previous one's addition.
 fn levels(buf: &[f32]) -> (f32, f64) {
-    let mut peak = [0.0f32; METER_LANES];
     let mut energy = [0.0f32; METER_LANES];
     let chunks = buf.chunks_exact(METER_LANES);
-    let rest = chunks.remainder();
+    for (e, v) in energy.iter_mut().zip(chunks.remainder()) {
+        *e += v * v;
+    }
     for chunk in chunks {
-        for c in 0..METER_LANES {
-            peak[c] = peak[c].max(chunk[c].abs());
-            energy[c] += chunk[c] * chunk[c];
+        for (e, v) in energy.iter_mut().zip(chunk) {
+            *e += v * v;
         }
     }
-    for (c, v) in rest.iter().enumerate() {
-        peak[c] = peak[c].max(v.abs());
-        energy[c] += v * v;
-    }
-    (
-        peak.iter().fold(0.0, |m, v| m.max(*v)),
-        energy.iter().map(|e| f64::from(*e)).sum(),
-    )
+    (peak_abs(buf), energy.iter().map(|e| f64::from(*e)).sum())
 }
 
 /// The audio half. Move it into the audio callback.

@@ -14,6 +14,7 @@ use crate::force::SensorReading;
 use crate::force::condition::ForceConditioner;
 use crate::force::drive::{DriveKind, Polarity};
 use crate::force::steps::{ReadingTime, StepDetector};
+use crate::numeric::peak_abs;
 use crate::physical::Ground;
 use crate::signal::noise::SplitMix64;
 use crate::synthesis::{Lane, PreparedMaterial, Voice};
@@ -267,7 +268,7 @@ impl Channel {
             self.pending_impulse = 0.0;
         }
         // `max` ignores a NaN, so the meter's bits stay those of a finite value.
-        self.drive_peak = drive.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        self.drive_peak = peak_abs(drive);
     }
 
     /// The current voice on the block's drive, when the channel plays a material through

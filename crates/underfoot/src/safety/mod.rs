@@ -33,6 +33,7 @@
 //! bits; rounded, 16423). The price is a bias of half a step towards zero, 96 dB below
 //! full scale in 16 bits.
 
+use crate::numeric::peak_abs;
 use crate::units::{Decibels, SampleRate, Seconds};
 
 /// `x · 2^(bits-1)` truncated towards zero, within the `bits`-bit two's complement range
@@ -147,23 +148,10 @@ impl Limiter {
     #[inline]
     #[must_use]
     pub fn passes(&self, x: &[f32]) -> bool {
-        // Lane by lane, so that the checks stay vector operations: a maximum of finite
-        // values does not depend on the order it is taken in.
-        const LANES: usize = 8;
-        let mut finite = true;
-        let mut peak = [0.0f32; LANES];
-        let chunks = x.chunks_exact(LANES);
-        for v in chunks.remainder() {
-            finite &= v.is_finite();
-            peak[0] = peak[0].max(v.abs());
-        }
-        for chunk in chunks {
-            for c in 0..LANES {
-                finite &= chunk[c].is_finite();
-                peak[c] = peak[c].max(chunk[c].abs());
-            }
-        }
-        self.gain == 1.0 && finite && peak.iter().all(|p| *p <= self.ceiling)
+        // Without a branch per sample, so that both checks stay vector loops.
+        self.gain == 1.0
+            && x.iter().fold(true, |ok, v| ok & v.is_finite())
+            && peak_abs(x) <= self.ceiling
     }
 
     /// Limits one sample.
