@@ -203,7 +203,7 @@ fn engine(c: &mut Criterion) {
     for (f, api) in anchors::available() {
         check_voices(api, f.label());
     }
-    let mut group = c.benchmark_group("engine");
+    let mut group = c.benchmark_group("vs C engine");
     group.sample_size(SAMPLES);
     for model in [SynthModel::Iir, SynthModel::Physical] {
         // The engine as `benches/engine.rs` builds it.
@@ -391,7 +391,7 @@ fn impact(c: &mut Criterion) {
         damping: 1e5,
         velocity: 1.0,
     };
-    let mut group = c.benchmark_group("impact");
+    let mut group = c.benchmark_group("vs C impact");
     group.sample_size(SAMPLES);
     let x = pulse();
     for n in [3, 16] {
@@ -461,7 +461,7 @@ fn impact(c: &mut Criterion) {
 
 fn aggregate(c: &mut Criterion) {
     let params = AggregateParams::default();
-    let mut group = c.benchmark_group("aggregate");
+    let mut group = c.benchmark_group("vs C aggregate");
     group.sample_size(SAMPLES);
     let rates = vec![300.0f32; STRIKE_EVERY];
     for n in [3, 16] {
