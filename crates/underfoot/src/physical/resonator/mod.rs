@@ -93,11 +93,11 @@ pub struct ResonatorBank {
     pole: Vec<Complex64>,
     /// `g_k`, to read the displacement from the state.
     gain: Vec<f64>,
-    /// `g_k p_k`: the displacement one sample ahead, from the state before the input.
-    gain_pole: Vec<Complex64>,
     /// `g_k s_k`: the velocity, from the state.
     gain_slope: Vec<Complex64>,
-    state: Vec<Complex64>,
+    /// The state and the coefficients the loops run on, one array per real number, each
+    /// padded with silent modes to a whole number of vector lanes (see `free.rs`).
+    lanes: Lanes,
     /// `h[1]`: the displacement one sample after a unit impulse.
     first_sample: f64,
     /// The modes still computed are the first `live` of the per-mode arrays; the others
@@ -131,9 +131,8 @@ impl ResonatorBank {
             scale: 1.0,
             pole: vec![zero; modes.len()],
             gain: modes.iter().map(|m| m.gain.abs()).collect(),
-            gain_pole: vec![zero; modes.len()],
             gain_slope: vec![zero; modes.len()],
-            state: vec![zero; modes.len()],
+            lanes: Lanes::new(modes.len()),
             first_sample: 0.0,
             live: modes.len(),
             order: (0..modes.len()).collect(),
@@ -157,9 +156,9 @@ impl ResonatorBank {
             self.pole[k] = pole;
             // The contact sees the driving-point gain |g|; the output, the signed one.
             let g = m.gain.abs();
-            self.gain_pole[k] = pole * g;
             self.gain_slope[k] = slope * m.gain;
             self.first_sample += g * pole.im;
+            self.lanes.set_coefficients(k, pole, g, self.gain_slope[k]);
         }
     }
 
@@ -225,9 +224,8 @@ impl ResonatorBank {
         self.modes.reserve_exact(more);
         self.pole.reserve_exact(more);
         self.gain.reserve_exact(more);
-        self.gain_pole.reserve_exact(more);
         self.gain_slope.reserve_exact(more);
-        self.state.reserve_exact(more);
+        self.lanes.reserve(modes);
         self.order.reserve_exact(more);
     }
 
@@ -247,23 +245,24 @@ impl ResonatorBank {
         copy(&mut self.modes, &other.modes);
         copy(&mut self.pole, &other.pole);
         copy(&mut self.gain, &other.gain);
-        copy(&mut self.gain_pole, &other.gain_pole);
         copy(&mut self.gain_slope, &other.gain_slope);
-        copy(&mut self.state, &other.state);
+        self.lanes.assign_from(&other.lanes);
     }
 
     /// Brings the bank to rest.
     pub fn reset(&mut self) {
-        self.state.fill(Complex64::new(0.0, 0.0));
+        self.lanes.zr.fill(0.0);
+        self.lanes.zi.fill(0.0);
         self.restore();
     }
     /// The displacement `y[n]` now, before this sample's input.
     #[must_use]
     pub fn displacement(&self) -> f64 {
-        self.state[..self.live]
+        let l = &self.lanes;
+        l.zi[..self.live]
             .iter()
-            .zip(&self.gain)
-            .map(|(z, g)| g * z.im)
+            .zip(&l.g)
+            .map(|(zi, g)| g * zi)
             .sum()
     }
 
@@ -271,10 +270,9 @@ impl ResonatorBank {
     /// gains are in metres per newton-second).
     #[must_use]
     pub fn velocity(&self) -> f64 {
-        self.state[..self.live]
-            .iter()
-            .zip(&self.gain_slope)
-            .map(|(z, gs)| gs.re * z.im + gs.im * z.re)
+        let l = &self.lanes;
+        (0..self.live)
+            .map(|k| l.sr[k] * l.zi[k] + l.si[k] * l.zr[k])
             .sum()
     }
 
@@ -285,13 +283,13 @@ impl ResonatorBank {
             self.restore();
         }
         let mut y = 0.0;
-        for ((z, p), g) in self.state[..self.live]
-            .iter_mut()
-            .zip(&self.pole)
-            .zip(&self.gain)
-        {
-            y += g * z.im;
-            *z = p * (*z + impulse);
+        let l = &mut self.lanes;
+        for k in 0..self.live {
+            y += l.g[k] * l.zi[k];
+            // z <- p (z + J)
+            let (re, im) = (l.zr[k] + impulse, l.zi[k]);
+            l.zr[k] = l.pr[k] * re - l.pi[k] * im;
+            l.zi[k] = l.pr[k] * im + l.pi[k] * re;
         }
         y
     }
@@ -328,11 +326,101 @@ impl ResonatorBank {
     /// current tuning.
     #[must_use]
     pub fn energy(&self) -> f64 {
-        0.5 * self.state[..self.live]
-            .iter()
-            .zip(&self.gain_slope)
-            .map(|(z, gs)| gs.im.abs() * z.norm_sqr())
+        (0..self.live)
+            .map(|k| self.lanes.mode_energy(k))
             .sum::<f64>()
+    }
+}
+
+/// The state and coefficients of a bank as a struct of arrays: `z_k = zr[k] + i zi[k]`,
+/// `p_k = pr[k] + i pi[k]`, `|g_k| = g[k]`, `g_k s_k = sr[k] + i si[k]`, in the order of
+/// the bank's per-mode arrays, each padded with zeros to a whole number of lanes (a
+/// padded mode has zero state and coefficients: it stays zero and adds zero).
+#[derive(Debug, Clone, PartialEq, Default)]
+struct Lanes {
+    zr: Vec<f64>,
+    zi: Vec<f64>,
+    pr: Vec<f64>,
+    pi: Vec<f64>,
+    g: Vec<f64>,
+    sr: Vec<f64>,
+    si: Vec<f64>,
+}
+
+impl Lanes {
+    fn new(modes: usize) -> Self {
+        let n = free::padded(modes);
+        let zero = vec![0.0; n];
+        Self {
+            zr: zero.clone(),
+            zi: zero.clone(),
+            pr: zero.clone(),
+            pi: zero.clone(),
+            g: zero.clone(),
+            sr: zero.clone(),
+            si: zero,
+        }
+    }
+
+    fn arrays_mut(&mut self) -> [&mut Vec<f64>; 7] {
+        [
+            &mut self.zr,
+            &mut self.zi,
+            &mut self.pr,
+            &mut self.pi,
+            &mut self.g,
+            &mut self.sr,
+            &mut self.si,
+        ]
+    }
+
+    fn set_coefficients(&mut self, k: usize, pole: Complex64, g: f64, gain_slope: Complex64) {
+        self.pr[k] = pole.re;
+        self.pi[k] = pole.im;
+        self.g[k] = g;
+        self.sr[k] = gain_slope.re;
+        self.si[k] = gain_slope.im;
+    }
+
+    fn reserve(&mut self, modes: usize) {
+        let n = free::padded(modes);
+        for a in self.arrays_mut() {
+            a.reserve_exact(n.saturating_sub(a.len()));
+        }
+    }
+
+    fn assign_from(&mut self, other: &Lanes) {
+        for (to, from) in self.arrays_mut().into_iter().zip([
+            &other.zr, &other.zi, &other.pr, &other.pi, &other.g, &other.sr, &other.si,
+        ]) {
+            to.clear();
+            to.extend_from_slice(from);
+        }
+    }
+
+    fn swap(&mut self, a: usize, b: usize) {
+        for v in self.arrays_mut() {
+            v.swap(a, b);
+        }
+    }
+
+    /// `½ ω_k |g_k| |z_k|²`.
+    fn mode_energy(&self, k: usize) -> f64 {
+        0.5 * self.si[k].abs() * (self.zr[k] * self.zr[k] + self.zi[k] * self.zi[k])
+    }
+
+    /// `z_k` as a complex number.
+    #[cfg(test)]
+    fn state(&self, k: usize) -> Complex64 {
+        Complex64::new(self.zr[k], self.zi[k])
+    }
+}
+
+#[cfg(test)]
+impl ResonatorBank {
+    /// The state of each mode, in the per-mode arrays' order.
+    fn state(&self) -> Vec<Complex64> {
+        (0..self.modes.len()).map(|k| self.lanes.state(k)).collect()
     }
 }
 
