@@ -53,6 +53,19 @@
 //! at most in sign: all that can be identified from one recorded signal. With
 //! non-negative gains both are the same point.
 //!
+//! # Precision
+//!
+//! The banks run in f64, in lanes of four (`free.rs`). Single precision would double the
+//! lanes, and its error is small: the same recursion with poles, gains and state rounded to
+//! f32, over a 4 s walk of every built-in physical model (32 modes each; heel impulses and
+//! micro-impulses), differs from this one's velocity by a relative RMS error of 2.5e-6
+//! (water) to 1.3e-4 (dirt, whose low modes ring longest), measured by
+//! `single_precision_banks_error_per_material` in the library's tests. The banks stay in f64
+//! all the same: the contact solve reads the displacement to a few ulps of f64 (its energy
+//! bookkeeping is tested to 1e-12), the free loop's cost is the latency of one multiply and
+//! add per sample rather than its width for the few modes of most slots, and the targets of
+//! issue 33 for the aggregate were met without it.
+//!
 //! # Files
 //!
 //! | file | what |
