@@ -109,8 +109,9 @@ pub struct ResonatorBank {
     /// `g_k s_k`: the velocity, from the state.
     gain_slope: Vec<Complex64>,
     /// The state and the coefficients the loops run on, one array per real number, each
-    /// padded with silent modes to a whole number of vector lanes (see `free.rs`).
-    lanes: Lanes,
+    /// padded with silent modes to a whole number of vector lanes (see `free.rs`); boxed,
+    /// so that a bank (and a `Surface`) stays small to move.
+    lanes: Box<Lanes>,
     /// `h[1]`: the displacement one sample after a unit impulse.
     first_sample: f64,
     /// The modes still computed are the first `live` of the per-mode arrays; the others
@@ -145,7 +146,7 @@ impl ResonatorBank {
             pole: vec![zero; modes.len()],
             gain: modes.iter().map(|m| m.gain.abs()).collect(),
             gain_slope: vec![zero; modes.len()],
-            lanes: Lanes::new(modes.len()),
+            lanes: Box::new(Lanes::new(modes.len())),
             first_sample: 0.0,
             live: modes.len(),
             order: (0..modes.len()).collect(),
