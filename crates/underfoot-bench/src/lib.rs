@@ -5,6 +5,8 @@
 //! for every `cargo test`. This library holds only what the benches share: the shared
 //! recordings, and the timings a bench derives its printed figures from ([`Samples`]).
 
+pub mod anchors;
+
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -87,6 +89,38 @@ impl Samples {
             0.5 * (last[n / 2 - 1] + last[n / 2])
         })
     }
+}
+
+impl Samples {
+    /// The median, over the last `sample_size` calls of both, of this bench's time per
+    /// unit over `ours`'s: the ratio of two benches timed in the same calls
+    /// (interleaved), so that what disturbed one round disturbed both. `None` if either
+    /// did not run.
+    #[must_use]
+    pub fn ratio_to(&self, ours: &Samples, sample_size: usize) -> Option<f64> {
+        let n = self.per_unit.len().min(ours.per_unit.len());
+        let start = n.saturating_sub(sample_size);
+        let mut ratios: Vec<f64> = (start..n)
+            .map(|i| self.per_unit[i] / ours.per_unit[i])
+            .collect();
+        if ratios.is_empty() {
+            return None;
+        }
+        ratios.sort_by(f64::total_cmp);
+        let m = ratios.len();
+        Some(if m % 2 == 1 {
+            ratios[m / 2]
+        } else {
+            0.5 * (ratios[m / 2 - 1] + ratios[m / 2])
+        })
+    }
+}
+
+/// Prints one figure in the line format `scripts/bench-table` collects:
+/// `figure<TAB>group<TAB>what<TAB>value`, `value` already formatted with its unit. Every
+/// figure the README's performance table shows is printed this way by a bench.
+pub fn figure(group: &str, what: &str, value: &str) {
+    println!("figure\t{group}\t{what}\t{value}");
 }
 
 /// How many channels one core renders in real time at `rate` Hz when one channel's sample

@@ -11,8 +11,6 @@
 //! is a decision, so it must be taken on a sample clock of the caller's, never at a block
 //! boundary, to keep the output independent of the block size.
 
-use num_complex::Complex64;
-
 use super::ResonatorBank;
 
 impl ResonatorBank {
@@ -27,9 +25,10 @@ impl ResonatorBank {
     pub(crate) fn cull(&mut self, floor: f64) {
         let mut k = 0;
         while k < self.live {
-            let energy = 0.5 * self.gain_slope[k].im.abs() * self.state[k].norm_sqr();
+            let energy = self.lanes.mode_energy(k);
             if energy <= floor {
-                self.state[k] = Complex64::new(0.0, 0.0);
+                self.lanes.zr[k] = 0.0;
+                self.lanes.zi[k] = 0.0;
                 self.live -= 1;
                 self.swap(k, self.live);
             } else {
@@ -60,9 +59,8 @@ impl ResonatorBank {
     fn swap(&mut self, a: usize, b: usize) {
         self.pole.swap(a, b);
         self.gain.swap(a, b);
-        self.gain_pole.swap(a, b);
         self.gain_slope.swap(a, b);
-        self.state.swap(a, b);
+        self.lanes.swap(a, b);
         self.order.swap(a, b);
     }
 }
