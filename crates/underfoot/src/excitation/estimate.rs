@@ -62,7 +62,10 @@
 //!    the recordings' median; `c` is scaled by their ratio while that is more than 5% off
 //!    and the render comes closer, at most three times (`c` within 1/4 to 4). Last `ρ`
 //!    again on the corrected time axis, by √2, then 2^{1/4}. Renders share one seed, so
-//!    that two candidates differ by their parameters, not their luck.
+//!    that two candidates differ by their parameters, not their luck; so a candidate
+//!    the searches come back to is not rendered again, and the candidates of one search
+//!    step are rendered together on the cores there are, the choice between them made in
+//!    their order afterwards (the result does not depend on how many ran at once).
 //! 7. **The perturbation.** What the train's own variation leaves of the recordings'
 //!    spread between steps, `sqrt(max(0, S_rec² - S_render²))`, at most 2.5 dB, is
 //!    [`ExcitationModel::perturbation_db`] (0 with a single recorded step: nothing says

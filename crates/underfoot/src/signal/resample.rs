@@ -614,6 +614,34 @@ mod tests {
         }
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(48))]
+
+        /// `peak` skips outputs by a bound; whatever it skips, it returns the largest
+        /// output of `process` to the bit: decaying noise bursts (a step's shape), at the
+        /// ratios of the level's upsampling and of the analysis.
+        #[test]
+        fn peak_is_the_largest_output(seed in proptest::prelude::any::<u64>(),
+                                      len in 1usize..3000, decay in 1.0f64..2000.0,
+                                      ratio in 0usize..3) {
+            let (from, to) = [(2000, 16_000), (48_000, 2000), (44_100, 48_000)][ratio];
+            let rs = Resampler::shared(SampleRate(from), SampleRate(to)).unwrap();
+            let mut rng = crate::signal::noise::SplitMix64::new(seed);
+            let x: Vec<f64> = (0..len)
+                .map(|n| rng.symmetric() * (-(n as f64) / decay).exp())
+                .collect();
+            let all = rs.process(&x).iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            proptest::prop_assert_eq!(rs.peak(&x).to_bits(), all.to_bits());
+        }
+    }
+
+    #[test]
+    fn peak_of_nothing_and_of_silence_is_zero() {
+        let rs = Resampler::new(SampleRate(2000), SampleRate(16_000)).unwrap();
+        assert_eq!(rs.peak(&[]), 0.0);
+        assert_eq!(rs.peak(&[0.0; 100]), 0.0);
+    }
+
     #[test]
     fn coprime_rates_use_direct_evaluation() {
         let rs = Resampler::new(SampleRate(47_999), SampleRate(2000)).unwrap();
