@@ -27,7 +27,7 @@ use underfoot::material::MaterialModel;
 use underfoot::material::build::{BuildConfig, BuildError, Progress, build_material_with_report};
 use underfoot::material::evaluate::StepComparison;
 use underfoot::material::library::validate_name;
-use underfoot::material::quality::{Disagreement, HeldOut, QualityError, leave_one_out};
+use underfoot::material::quality::{Disagreement, HeldOut, QualityError, refit_each};
 use underfoot::recording::{self, CsvSpec};
 use underfoot::synthesis::SynthModel;
 use underfoot::units::{Band, Decibels, Hz, SampleRate};
@@ -331,43 +331,71 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     }
     reading.finish_and_clear();
 
+    // The generalisation check, computed for every fit of a few recordings (one refit each,
+    // without the physical calibration): a set that mixes materials fits well in-sample
+    // and only this shows it. The warning needs the spectra only: without --report (which
+    // renders the left-out models' steps), the refits skip fitting the excitation, most of
+    // their time. The refits need nothing of the model fitted on all recordings, so they
+    // run on a thread of their own beside its fit, whose stages leave a core idle at times
+    // (reading its result is left for after the fit, below).
+    let check_cfg = (args.report.is_some()
+        || recording::by_file(&recordings).len() <= MAX_LOO_RECORDINGS)
+        .then(|| {
+            if args.report.is_some() {
+                cfg.clone()
+            } else {
+                BuildConfig {
+                    excitation: None,
+                    ..cfg.clone()
+                }
+            }
+        });
+
     // The order search bisects, so orders arrive out of sequence: count fits, not orders.
     let fitting = bar(0, "fitting  {spinner} {pos} orders tried {msg}");
     let started = Instant::now();
     let mut checked = None;
-    let (model, built) =
-        build_material_with_report(&args.material, &recordings, &cfg, &mut |p| match p {
-            Progress::Checked(c) => {
-                if let Some(w) = c.disagreement.as_ref().and_then(Disagreement::warning) {
-                    fitting.suspend(|| eprintln!("underfoot: warning: {:?}: {w}", args.material));
-                }
-                checked = Some(c.clone());
+    let mut progress = |p: &Progress| match p {
+        Progress::Checked(c) => {
+            if let Some(w) = c.disagreement.as_ref().and_then(Disagreement::warning) {
+                fitting.suspend(|| eprintln!("underfoot: warning: {:?}: {w}", args.material));
             }
-            Progress::Measured { strikes, .. } => fitting.set_message(format!("{strikes} strikes")),
-            Progress::OrderTried {
-                order,
-                lsd_db,
-                nrmse,
-                ..
-            } => {
-                fitting.inc(1);
-                fitting.set_message(format!(
-                    "(last: order {order}, LSD {lsd_db:.2} dB, NRMSE {nrmse:.4})"
-                ));
-            }
-            Progress::PhysicalFailed { reason } => {
-                fitting.suspend(|| {
+            checked = Some(c.clone());
+        }
+        Progress::Measured { strikes, .. } => fitting.set_message(format!("{strikes} strikes")),
+        Progress::OrderTried {
+            order,
+            lsd_db,
+            nrmse,
+            ..
+        } => {
+            fitting.inc(1);
+            fitting.set_message(format!(
+                "(last: order {order}, LSD {lsd_db:.2} dB, NRMSE {nrmse:.4})"
+            ));
+        }
+        Progress::PhysicalFailed { reason } => {
+            fitting.suspend(|| {
                 eprintln!(
                     "underfoot: warning: no physical model for {:?} (the filter is kept): {reason}",
                     args.material
                 );
             });
-            }
-            _ => {}
-        })
+        }
+        _ => {}
+    };
+    let (built, elapsed, refits) = std::thread::scope(|scope| {
+        let refits = check_cfg
+            .as_ref()
+            .map(|c| scope.spawn(|| refit_each(&recordings, c, &args.material)));
+        let built = build_material_with_report(&args.material, &recordings, &cfg, &mut progress);
+        let elapsed = started.elapsed().as_secs_f64();
+        let refits = refits.map(|h| h.join().unwrap_or_else(|p| std::panic::resume_unwind(p)));
+        (built, elapsed, refits)
+    });
+    let (model, built) = built
         .map_err(with_flag_hint)
         .with_context(|| format!("fitting material {:?}", args.material))?;
-    let elapsed = started.elapsed().as_secs_f64();
     fitting.finish_and_clear();
     if model.fit.poor_fit {
         eprintln!(
@@ -381,28 +409,14 @@ pub fn run(args: &FitArgs) -> anyhow::Result<()> {
     }
     // The generalisation check runs before anything is written: a failure here leaves
     // --out as it was, like any other.
-    // Computed for every fit of a few recordings (one refit each, without the physical
-    // calibration): a set that mixes materials fits well in-sample and only this shows it.
-    let left_out =
-        if args.report.is_some() || recording::by_file(&recordings).len() <= MAX_LOO_RECORDINGS {
-            // The warning needs the spectra only: without --report (which renders the
-            // left-out models' steps), the refits skip fitting the excitation, most of
-            // their time.
-            let check_cfg = if args.report.is_some() {
-                cfg.clone()
-            } else {
-                BuildConfig {
-                    excitation: None,
-                    ..cfg.clone()
-                }
-            };
-            Some(
-                leave_one_out(&recordings, &check_cfg, &model)
-                    .with_context(|| format!("leave-one-out check of {:?}", args.material))?,
-            )
-        } else {
-            None
-        };
+    let left_out = match refits {
+        Some(refits) => Some(
+            refits
+                .map(|r| r.map(|r| r.score(&model)))
+                .with_context(|| format!("leave-one-out check of {:?}", args.material))?,
+        ),
+        None => None,
+    };
     if let Some(Some(loo)) = &left_out
         && let Some(warning) = crate::report::generalisation_warning(&model, loo)
     {

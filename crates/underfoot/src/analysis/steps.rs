@@ -608,24 +608,19 @@ fn true_peak(x: &[f64]) -> f64 {
     if largest <= 0.0 || largest.is_nan() || x.len() < 3 {
         return largest;
     }
-    let at = |t: f64| -> f64 {
-        let base = t.floor() as isize;
+    // The kernel at the offsets `k / 8` (k in -7..=7) from a sample: the same 15 rows of
+    // taps for every local maximum, so they are computed once.
+    let weights = peak_weights();
+    let at = |i: usize, k: i32| -> f64 {
+        // The point `t = i + k/8`; its taps run over `n` from `floor(t) - PEAK_TAPS + 1`.
+        let base = i as isize + if k < 0 { -1 } else { 0 };
+        let row = &weights[(k + 7) as usize];
         let mut acc = 0.0;
-        for n in base - PEAK_TAPS as isize + 1..=base + PEAK_TAPS as isize {
+        for (j, (sinc, w)) in row.iter().enumerate() {
+            let n = base - PEAK_TAPS as isize + 1 + j as isize;
             if n < 0 || n as usize >= x.len() {
                 continue;
             }
-            let d = t - n as f64;
-            let half = PEAK_TAPS as f64;
-            if d.abs() >= half {
-                continue;
-            }
-            let sinc = if d == 0.0 {
-                1.0
-            } else {
-                (std::f64::consts::PI * d).sin() / (std::f64::consts::PI * d)
-            };
-            let w = 0.5 + 0.5 * (std::f64::consts::PI * d / half).cos();
             acc += x[n as usize] * sinc * w;
         }
         acc
@@ -635,11 +630,42 @@ fn true_peak(x: &[f64]) -> f64 {
         let v = x[i].abs();
         if v >= 0.7 * largest && v >= x[i - 1].abs() && v >= x[i + 1].abs() {
             for k in -7..=7 {
-                peak = peak.max(at(i as f64 + f64::from(k) / 8.0).abs());
+                peak = peak.max(at(i, k).abs());
             }
         }
     }
     peak
+}
+
+/// The interpolation kernel of [`true_peak`], `sinc(d)` and `w(d)` (a Hann window over
+/// `±PEAK_TAPS`), at the point `t = i + k/8` (row `k + 7`, `k` in -7..=7) for the
+/// `2 PEAK_TAPS` samples `n` from `floor(t) - PEAK_TAPS + 1` on (`d = t - n`; 0 where
+/// `|d|` reaches `PEAK_TAPS`).
+fn peak_weights() -> &'static [[(f64, f64); 2 * PEAK_TAPS]; 15] {
+    static WEIGHTS: std::sync::OnceLock<[[(f64, f64); 2 * PEAK_TAPS]; 15]> =
+        std::sync::OnceLock::new();
+    WEIGHTS.get_or_init(|| {
+        let half = PEAK_TAPS as f64;
+        let mut rows = [[(0.0, 0.0); 2 * PEAK_TAPS]; 15];
+        for (r, row) in rows.iter_mut().enumerate() {
+            let k = r as i32 - 7;
+            // `t - floor(t)`, exact: eighths are exact in binary.
+            let frac = f64::from(k.rem_euclid(8)) / 8.0;
+            for (j, w) in row.iter_mut().enumerate() {
+                let d = frac + half - 1.0 - j as f64;
+                if d.abs() >= half {
+                    continue;
+                }
+                let sinc = if d == 0.0 {
+                    1.0
+                } else {
+                    (std::f64::consts::PI * d).sin() / (std::f64::consts::PI * d)
+                };
+                *w = (sinc, 0.5 + 0.5 * (std::f64::consts::PI * d / half).cos());
+            }
+        }
+        rows
+    })
 }
 
 fn decay(x: &[f64], bin: usize) -> Vec<f64> {

@@ -62,7 +62,10 @@
 //!    the recordings' median; `c` is scaled by their ratio while that is more than 5% off
 //!    and the render comes closer, at most three times (`c` within 1/4 to 4). Last `ρ`
 //!    again on the corrected time axis, by √2, then 2^{1/4}. Renders share one seed, so
-//!    that two candidates differ by their parameters, not their luck.
+//!    that two candidates differ by their parameters, not their luck; so a candidate
+//!    the searches come back to is not rendered again, and the candidates of one search
+//!    step are rendered together on the cores there are, the choice between them made in
+//!    their order afterwards (the result does not depend on how many ran at once).
 //! 7. **The perturbation.** What the train's own variation leaves of the recordings'
 //!    spread between steps, `sqrt(max(0, S_rec² - S_render²))`, at most 2.5 dB, is
 //!    [`ExcitationModel::perturbation_db`] (0 with a single recorded step: nothing says
@@ -253,23 +256,14 @@ pub fn estimate(
 
     let fine_speeds = clock::nominal_speeds(fine);
     let renderer = Renderer::new(&fine_kernel, &fine_speeds, fine, &steps_cfg, cfg);
-    // The heel's share as measured, unless the crest factor asks for another (below).
-    let heel_share = std::cell::Cell::new(heel);
-    let build_with = |density: f64, stretch: f64, spread: f64| {
+    let build_with = |c: Candidate, spread: f64| {
         model_from(
-            &profile,
-            heel_share.get(),
-            density,
-            stretch,
-            spread,
-            &speeds,
-            fs,
-            cfg,
+            &profile, c.heel, c.density, c.stretch, spread, &speeds, fs, cfg,
         )
-    };
-    let shaped = |model: ExcitationModel, shape: f64| ExcitationModel {
-        amplitude_shape: shape,
-        ..model
+        .map(|m| ExcitationModel {
+            amplitude_shape: c.shape,
+            ..m
+        })
     };
     // A step's duration spreads widely (a long tail holds a few percent of the energy,
     // or not), so it is measured over four times the renders.
@@ -280,7 +274,18 @@ pub fn estimate(
     let probe = DENSITIES[5];
     // The train alone already makes steps last differently; the time scale's spread adds
     // what it leaves of the recordings' (their variances add).
-    let alone = long.describe(&build_with(probe, 1.0, 0.0)?, false)?;
+    let alone = long.describe(
+        &build_with(
+            Candidate {
+                density: probe,
+                stretch: 1.0,
+                shape: 2.0,
+                heel,
+            },
+            0.0,
+        )?,
+        false,
+    )?;
     let logs: Vec<f64> = alone.iter().map(|s| s.duration.0.max(1e-3).ln()).collect();
     let mean = logs.iter().sum::<f64>() / logs.len().max(1) as f64;
     let train_variance =
@@ -289,9 +294,8 @@ pub fn estimate(
         .max(0.0)
         .sqrt()
         .min(1.0);
-    let build = |density: f64, stretch: f64, shape: f64| {
-        build_with(density, stretch, duration_spread).map(|m| shaped(m, shape))
-    };
+    let build = |c: Candidate| build_with(c, duration_spread);
+    let mut renders = Renders::new(&renderer, &build);
     // The density and the magnitudes' shape: the median micro-event count and crest
     // factor of rendered steps against the recordings', each error in units of what the
     // acceptance of a render tolerates (a count 1.5 times off, a crest 3 dB off, each
@@ -304,43 +308,59 @@ pub fn estimate(
     // The generator plays up to `MAX_DRAWS` events a sample, at a clock up to about twice
     // the mean pace (the loading): denser trains would be cut short.
     let densest = fine.hz() * f64::from(super::MAX_DRAWS) / 4.0;
-    type Best = Option<(f64, f64, f64, StepSummary)>;
-    let search = |stretch: f64, candidates: &[(f64, f64)], best: &mut Best| {
-        for &(d, shape) in candidates {
-            let d = d.min(densest);
-            let summary = renderer.summary(&build(d, stretch, shape)?)?;
+    type Best = Option<(f64, Candidate, StepSummary)>;
+    // The candidates in order, the first of the lowest score kept (the renders run
+    // together, the choice is made in the order given).
+    let mut search = |candidates: &[Candidate], best: &mut Best| {
+        let candidates: Vec<Candidate> = candidates
+            .iter()
+            .map(|c| Candidate {
+                density: c.density.min(densest),
+                ..*c
+            })
+            .collect();
+        for (c, summary) in candidates.iter().zip(renders.summaries(&candidates)?) {
             let s = score(&summary);
             if best.as_ref().is_none_or(|b| s < b.0) {
-                *best = Some((s, d, shape, summary));
+                *best = Some((s, *c, summary));
             }
         }
         Ok::<(), ExcitationError>(())
     };
-    let around = |best: &Best, factors: &[f64], shapes: &[f64]| -> Vec<(f64, f64)> {
-        let Some((_, d, shape, _)) = best else {
-            return Vec::new();
-        };
+    let around = |c: Candidate, factors: &[f64], shapes: &[f64]| -> Vec<Candidate> {
         let shapes: Vec<f64> = if shapes.is_empty() {
-            vec![*shape]
+            vec![c.shape]
         } else {
             shapes.to_vec()
         };
         shapes
             .iter()
-            .flat_map(|&k| factors.iter().map(move |&f| (d * f, k)))
+            .flat_map(|&shape| {
+                factors.iter().map(move |&f| Candidate {
+                    density: c.density * f,
+                    shape,
+                    ..c
+                })
+            })
             .collect()
     };
     // The density over octaves with exponential energies; then the shape beside the best
     // density and its neighbours.
     let mut best: Best = None;
-    let octaves: Vec<(f64, f64)> = DENSITIES
+    let octaves: Vec<Candidate> = DENSITIES
         .iter()
         .filter(|d| **d <= densest)
-        .map(|&d| (d, 2.0))
+        .map(|&density| Candidate {
+            density,
+            stretch: 1.0,
+            shape: 2.0,
+            heel,
+        })
         .collect();
-    search(1.0, &octaves, &mut best)?;
-    let shapes = around(&best, &[0.5, 1.0, 2.0], &SHAPES);
-    search(1.0, &shapes, &mut best)?;
+    search(&octaves, &mut best)?;
+    if let Some((_, c, _)) = best {
+        search(&around(c, &[0.5, 1.0, 2.0], &SHAPES), &mut best)?;
+    }
     // The heel: the deconvolution smears an impact over a few milliseconds and may give
     // the train some of its energy, which shows as a crest factor too low. Twice and four
     // times the measured share are tried (the train keeps at least a tenth), each at the
@@ -349,25 +369,35 @@ pub fn estimate(
     // render comes closer.
     if heel > 0.0
         && heel < 1.0
-        && let Some((score_now, d, shape, summary)) = best.clone()
+        && let Some((_, c, summary)) = &best
         && target.crest_db - summary.crest_db > 1.0
     {
-        let mut chosen = (score_now, heel);
-        for m in [2.0, 4.0] {
-            heel_share.set((heel * m).min(0.9));
-            for f in [0.5, 1.0, 2.0] {
-                let density = (d * f).min(densest);
-                let candidate = renderer.summary(&build(density, 1.0, shape)?)?;
-                let s = score(&candidate);
-                if s < chosen.0 {
-                    chosen = (s, heel_share.get());
-                    best = Some((s, density, shape, candidate));
-                }
-            }
-        }
-        heel_share.set(chosen.1);
+        let louder: Vec<Candidate> = [2.0, 4.0]
+            .iter()
+            .flat_map(|&m| {
+                around(
+                    Candidate {
+                        heel: (heel * m).min(0.9),
+                        ..*c
+                    },
+                    &[0.5, 1.0, 2.0],
+                    &[],
+                )
+            })
+            .collect();
+        search(&louder, &mut best)?;
     }
-    let Some((_, density, shape, _)) = best.clone() else {
+    let Some((
+        _,
+        Candidate {
+            density,
+            shape,
+            heel,
+            ..
+        },
+        _,
+    )) = best
+    else {
         return Err(bad("no calibration render finished".into()));
     };
 
@@ -388,30 +418,49 @@ pub fn estimate(
     };
     let want = (target.duration_ms.max(0.1) / 1e3).ln();
     let mut stretch = 1.0;
-    let mut at = log_mean(&long.describe(&build(density, stretch, shape)?, false)?);
+    let at_stretch = |stretch: f64| Candidate {
+        density,
+        stretch,
+        shape,
+        heel,
+    };
+    let mut at = log_mean(&long.describe(&build(at_stretch(stretch))?, false)?);
     for _ in 0..3 {
         if (at - want).abs() <= 1.05f64.ln() {
             break;
         }
         let c = (stretch * (want - at).exp()).clamp(0.25, 4.0);
-        let next = log_mean(&long.describe(&build(density, c, shape)?, false)?);
+        let next = log_mean(&long.describe(&build(at_stretch(c))?, false)?);
         if (next - want).abs() >= (at - want).abs() {
             break;
         }
         (stretch, at) = (c, next);
     }
-    // The density again, finer, on the corrected time axis.
+    // The density again, finer, on the corrected time axis: the first round's two
+    // neighbours are rendered with the density itself (it is the best until they are
+    // scored).
     let mut best: Best = None;
-    search(stretch, &[(density, shape)], &mut best)?;
+    let mut near = vec![at_stretch(stretch)];
     for round in 1..cfg.rounds.max(1) {
         let r = 2f64.powf(0.5f64.powi(round as i32));
-        let near = around(&best, &[1.0 / r, r], &[]);
-        search(stretch, &near, &mut best)?;
+        let centre = match &best {
+            Some((_, c, _)) => {
+                near.clear();
+                *c
+            }
+            None => near[0],
+        };
+        near.extend(around(centre, &[1.0 / r, r], &[]));
+        search(&near, &mut best)?;
     }
-    let Some((_, density, shape, rendered)) = best else {
+    if best.is_none() {
+        search(&near, &mut best)?;
+    }
+    let Some((_, chosen, rendered)) = best else {
         return Err(bad("no calibration render finished".into()));
     };
-    let mut model = build(density, stretch, shape)?;
+    let density = chosen.density;
+    let mut model = build(chosen)?;
     // The final render, over the long renders' steps, spectra and all: the spread between
     // its steps, beside their time structure.
     let rendered = {
@@ -860,6 +909,111 @@ impl FftConvolver {
         let mut out = self.product(x, true);
         out.truncate(self.len);
         out
+    }
+}
+
+/// What a calibration render varies: the excitation's density (events per second of
+/// step clock), the stretch of the recordings' time axis, the magnitudes' shape and the
+/// heel's share.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Candidate {
+    density: f64,
+    stretch: f64,
+    shape: f64,
+    heel: f64,
+}
+
+impl Candidate {
+    /// The candidate as a map key: two candidates of the same bits are the same render.
+    fn key(&self) -> [u64; 4] {
+        [self.density, self.stretch, self.shape, self.heel].map(f64::to_bits)
+    }
+}
+
+/// The calibration renders of the density, shape and heel searches (step 6): each
+/// candidate's summary, rendered once (the searches come back to a candidate already
+/// rendered, e.g. the best density when the shapes are tried around it; every render
+/// shares one seed, so a candidate's render is the same whenever it is made), and a
+/// search's new candidates rendered together on the cores there are (the renders are
+/// independent; the choice between them is made in order afterwards, so the result does
+/// not depend on how many ran at once).
+struct Renders<'a, B> {
+    renderer: &'a Renderer<'a>,
+    build: &'a B,
+    done: std::collections::HashMap<[u64; 4], StepSummary>,
+}
+
+impl<'a, B> Renders<'a, B>
+where
+    B: Fn(Candidate) -> Result<ExcitationModel, ExcitationError> + Sync,
+{
+    fn new(renderer: &'a Renderer<'a>, build: &'a B) -> Self {
+        Self {
+            renderer,
+            build,
+            done: std::collections::HashMap::new(),
+        }
+    }
+
+    /// The summaries of `candidates`' renders, in their order.
+    fn summaries(&mut self, candidates: &[Candidate]) -> Result<Vec<StepSummary>, ExcitationError> {
+        let mut new: Vec<Candidate> = Vec::new();
+        for c in candidates {
+            if !self.done.contains_key(&c.key()) && !new.iter().any(|n| n.key() == c.key()) {
+                new.push(*c);
+            }
+        }
+        let threads = std::thread::available_parallelism()
+            .map_or(1, std::num::NonZeroUsize::get)
+            .min(new.len());
+        let render = |c: &Candidate| self.renderer.summary(&(self.build)(*c)?);
+        let rendered: Vec<Result<StepSummary, ExcitationError>> = if threads <= 1 {
+            new.iter().map(render).collect()
+        } else {
+            // Thread `t` renders candidates t, t + threads, ...
+            let mut by_thread: Vec<Vec<Result<StepSummary, ExcitationError>>> =
+                std::thread::scope(|scope| {
+                    let handles: Vec<_> = (1..threads)
+                        .map(|t| {
+                            let new = &new;
+                            let render = &render;
+                            scope.spawn(move || {
+                                new.iter().skip(t).step_by(threads).map(render).collect()
+                            })
+                        })
+                        .collect();
+                    let mut all = vec![new.iter().step_by(threads).map(render).collect()];
+                    for h in handles {
+                        all.push(h.join().unwrap_or_else(|_| {
+                            vec![Err(ExcitationError::Recordings(
+                                "a calibration render did not finish".into(),
+                            ))]
+                        }));
+                    }
+                    all
+                });
+            let mut iters: Vec<_> = by_thread.iter_mut().map(|v| v.drain(..)).collect();
+            (0..new.len())
+                .map(|i| {
+                    iters[i % threads].next().unwrap_or_else(|| {
+                        Err(ExcitationError::Recordings(
+                            "a calibration render did not finish".into(),
+                        ))
+                    })
+                })
+                .collect()
+        };
+        for (c, summary) in new.iter().zip(rendered) {
+            self.done.insert(c.key(), summary?);
+        }
+        candidates
+            .iter()
+            .map(|c| {
+                self.done.get(&c.key()).cloned().ok_or_else(|| {
+                    ExcitationError::Recordings("a calibration render is missing".into())
+                })
+            })
+            .collect()
     }
 }
 

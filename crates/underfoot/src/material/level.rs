@@ -84,7 +84,7 @@ pub fn nominal_peak(
         let mut y: Vec<f64> = x.iter().map(|v| f64::from(*v)).collect();
         y.resize(x.len() + tail, 0.0);
         sos.filter_in_place(&mut y);
-        peak = up.process(&y).iter().fold(peak, |m, v| m.max(v.abs()));
+        peak = peak.max(up.peak(&y));
     }
     Ok(peak)
 }

@@ -240,18 +240,24 @@ impl Sos {
     /// If `state` does not hold one entry per section.
     pub fn filter_with_state(&self, x: &mut [f64], state: &mut [[f64; 2]]) {
         assert_eq!(state.len(), self.sections.len(), "one state per section");
-        for (s, st) in self.sections.iter().zip(state.iter_mut()) {
-            let [b0, b1, b2] = s.b;
-            let [_, a1, a2] = s.a;
-            let [mut s1, mut s2] = *st;
-            for v in x.iter_mut() {
-                let xin = *v;
-                let y = b0 * xin + s1;
-                s1 = b1 * xin - a1 * y + s2;
-                s2 = b2 * xin - a2 * y;
-                *v = y;
+        // Up to four sections at a time, sample by sample: each section's recursion is a
+        // chain of dependent multiply-adds, and the chains of the sections of one group
+        // overlap in the processor where, one section after the other over the whole
+        // signal, each would wait for itself. Every section does the same arithmetic in
+        // the same order either way, so the output is the same to the bit.
+        let mut sections = self.sections.as_slice();
+        let mut state = state;
+        while !sections.is_empty() {
+            let k = sections.len().min(4);
+            let (group, rest) = sections.split_at(k);
+            let (st, st_rest) = state.split_at_mut(k);
+            match k {
+                1 => cascade::<1>(group, st, x),
+                2 => cascade::<2>(group, st, x),
+                3 => cascade::<3>(group, st, x),
+                _ => cascade::<4>(group, st, x),
             }
-            *st = [s1, s2];
+            (sections, state) = (rest, st_rest);
         }
     }
 
@@ -280,6 +286,26 @@ pub fn poly_mul(p: &[f64], q: &[f64]) -> Vec<f64> {
         }
     }
     r
+}
+
+/// `K` sections (transposed direct form II) run over `x` in place, one sample through all
+/// of them before the next, from and into `state`.
+fn cascade<const K: usize>(sections: &[Biquad], state: &mut [[f64; 2]], x: &mut [f64]) {
+    let coefficients: [Biquad; K] = std::array::from_fn(|k| sections[k]);
+    let mut st: [[f64; 2]; K] = std::array::from_fn(|k| state[k]);
+    for v in x.iter_mut() {
+        let mut u = *v;
+        for (c, [s1, s2]) in coefficients.iter().zip(st.iter_mut()) {
+            let [b0, b1, b2] = c.b;
+            let [_, a1, a2] = c.a;
+            let y = b0 * u + *s1;
+            *s1 = b1 * u - a1 * y + *s2;
+            *s2 = b2 * u - a2 * y;
+            u = y;
+        }
+        *v = u;
+    }
+    state.copy_from_slice(&st);
 }
 
 #[cfg(test)]

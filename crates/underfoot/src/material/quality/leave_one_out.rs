@@ -10,12 +10,14 @@
 //! and compare it with the other. When the left-out distance is close to the in-sample one, the
 //! recordings were enough; when it is much larger, the model has learnt the particular
 //! steps rather than the ground, and more recordings are needed. With one recording there
-//! is nothing to leave out, and the function says so by returning `None`.
+//! is nothing to leave out, and the function says so by returning `None`. The refits need
+//! nothing of the model fitted on all recordings ([`refit_each`]; [`Refits::score`] then
+//! scores them), so `fit` runs them beside that model's fit.
 
 use super::QualityConfig;
 use super::disagreement::aligned_lsd_db;
-use crate::analysis::measure;
 use crate::analysis::steps::{StepConfig, StepSummary, describe_all, summarize};
+use crate::analysis::{MeasuredResponse, measure};
 use crate::material::MaterialModel;
 use crate::material::build::{BuildConfig, BuildError, build_material};
 use crate::recording::Recording;
@@ -72,7 +74,8 @@ fn mean(v: impl ExactSizeIterator<Item = f64>) -> Decibels {
 
 /// Fits on all recordings but one, for each in turn, and scores each model on the one left
 /// out; `full` is the model fitted on all of them (for the in-sample figure). `None` with
-/// fewer than two recordings.
+/// fewer than two recordings. [`refit_each`] then [`Refits::score`]: the refits do not need
+/// `full`, so a caller may run them while `full` is being fitted.
 ///
 /// # Errors
 /// [`BuildError`] when a fit on a subset, or the measurement of a recording alone, fails.
@@ -81,6 +84,28 @@ pub fn leave_one_out(
     cfg: &BuildConfig,
     full: &MaterialModel,
 ) -> Result<Option<LeaveOneOut>, BuildError> {
+    Ok(refit_each(recordings, cfg, &full.name)?.map(|r| r.score(full)))
+}
+
+/// The models of [`leave_one_out`] fitted on all recordings but one, and what each left-out
+/// recording gives alone, before the model fitted on all of them is known.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Refits {
+    /// Per recording left out: its measured response, and the entry without its scores.
+    held_out: Vec<(MeasuredResponse, HeldOut)>,
+}
+
+/// The first half of [`leave_one_out`]: for each recording (a long recording's excerpts
+/// together), the material `name` fitted on the others, the one left out measured and its
+/// steps described. `None` with fewer than two recordings.
+///
+/// # Errors
+/// As [`leave_one_out`].
+pub fn refit_each(
+    recordings: &[Recording],
+    cfg: &BuildConfig,
+    name: &str,
+) -> Result<Option<Refits>, BuildError> {
     // A long recording's excerpts are held out together: they are one file.
     let files = crate::recording::by_file(recordings);
     if files.len() < 2 {
@@ -95,13 +120,6 @@ pub fn leave_one_out(
         },
         ..cfg.clone()
     };
-    let db = |v: &[f64]| -> Vec<f64> {
-        v.iter()
-            .map(|&m| Decibels::from_amplitude(m).0)
-            .collect::<Vec<_>>()
-    };
-    let grid: Vec<Hz> = full.fit.grid_hz.iter().map(|&f| Hz(f)).collect();
-    let full_db = db(&full.fit.model);
     let mut held_out = Vec::with_capacity(files.len());
     for file in &files {
         let left: &[Recording] = &recordings[file.clone()];
@@ -110,16 +128,8 @@ pub fn leave_one_out(
             .chain(&recordings[file.end..])
             .cloned()
             .collect();
-        let model = build_material(&full.name, &others, &sub_cfg, &mut |_| {})?;
+        let model = build_material(name, &others, &sub_cfg, &mut |_| {})?;
         let measured = measure(left, &cfg.analysis)?;
-        let measured_db = db(&measured.on_grid(&grid));
-        let model_db = db(&model.fit.model);
-        let gain = measured_db
-            .iter()
-            .zip(&model_db)
-            .map(|(m, s)| m - s)
-            .sum::<f64>()
-            / measured_db.len().max(1) as f64;
         let steps_cfg = StepConfig {
             band: cfg.analysis.band,
             ..StepConfig::default()
@@ -128,17 +138,53 @@ pub fn leave_one_out(
         for rec in left {
             steps.extend(describe_all(&rec.samples, rec.rate, None, &steps_cfg)?);
         }
-        let rec = &left[0];
-        held_out.push(HeldOut {
-            file: rec.name.clone(),
+        let entry = HeldOut {
+            file: left[0].name.clone(),
             strikes: measured.strikes.len(),
             order: model.order,
-            lsd: Decibels(aligned_lsd_db(&model_db, &measured_db)),
-            in_sample_lsd: Decibels(aligned_lsd_db(&full_db, &measured_db)),
-            gain: Decibels(gain),
+            lsd: Decibels(f64::NAN),
+            in_sample_lsd: Decibels(f64::NAN),
+            gain: Decibels(f64::NAN),
             recorded: (!steps.is_empty()).then(|| summarize(&steps, &steps_cfg)),
             model,
-        });
+        };
+        held_out.push((measured, entry));
     }
-    Ok(Some(LeaveOneOut { held_out }))
+    Ok(Some(Refits { held_out }))
+}
+
+impl Refits {
+    /// The second half of [`leave_one_out`]: each refit and `full` scored on the recording
+    /// left out, on `full`'s metric grid.
+    #[must_use]
+    pub fn score(self, full: &MaterialModel) -> LeaveOneOut {
+        let db = |v: &[f64]| -> Vec<f64> {
+            v.iter()
+                .map(|&m| Decibels::from_amplitude(m).0)
+                .collect::<Vec<_>>()
+        };
+        let grid: Vec<Hz> = full.fit.grid_hz.iter().map(|&f| Hz(f)).collect();
+        let full_db = db(&full.fit.model);
+        let held_out = self
+            .held_out
+            .into_iter()
+            .map(|(measured, entry)| {
+                let measured_db = db(&measured.on_grid(&grid));
+                let model_db = db(&entry.model.fit.model);
+                let gain = measured_db
+                    .iter()
+                    .zip(&model_db)
+                    .map(|(m, s)| m - s)
+                    .sum::<f64>()
+                    / measured_db.len().max(1) as f64;
+                HeldOut {
+                    lsd: Decibels(aligned_lsd_db(&model_db, &measured_db)),
+                    in_sample_lsd: Decibels(aligned_lsd_db(&full_db, &measured_db)),
+                    gain: Decibels(gain),
+                    ..entry
+                }
+            })
+            .collect();
+        LeaveOneOut { held_out }
+    }
 }

@@ -38,7 +38,7 @@ pub mod rates;
 pub mod strikes;
 
 pub use disagreement::{Disagreement, Spread, aligned_lsd_db, disagreement};
-pub use leave_one_out::{HeldOut, LeaveOneOut, leave_one_out};
+pub use leave_one_out::{HeldOut, LeaveOneOut, Refits, leave_one_out, refit_each};
 pub use poor_fit::{check_fit, is_poor};
 pub use rates::{RateIssue, check_rates, min_rate};
 pub use strikes::{RecordingsQuality, StrikeToNoise, check_recordings, strike_to_noise};

@@ -36,16 +36,18 @@
 //!    steps are rendered ([`render`]), analysed exactly as the recordings were, and the
 //!    output gain is set so that the mean level in dB over the band equals the
 //!    measurement's. What the render still misses, `M(f) / R(f)`, multiplies the goal of
-//!    the gain fit, and steps 7 and 8 run again (`refine_rounds`, 1 by default: on the
-//!    shared recordings a second or third round never came out best, and each costs a
-//!    render); the round closest to the measurement is kept, and its render at that gain
+//!    the gain fit, and steps 7 and 8 run again (`refine_rounds`, 2 by default: on the
+//!    shared recordings the third round comes out best for hard, sand, snow and water,
+//!    the second for the others, the first never; each costs a render); the round closest to the measurement is kept, and its render at that gain
 //!    gives the recorded NRMSE and log-spectral distance ([`score_render`] computes the
 //!    same figure again).
 //!
 //! **Cost.** The renders are most of it (a nominal step is a second at 48 kHz through
-//! 32 modes and four impacts in flight); the measurement is the IIR fit's, passed in by
-//! [`estimate_measured`], and [`crate::material::build`] runs the estimation beside the
-//! IIR fit. `underfoot-bench`'s `benches/calibration.rs` and `scripts/time-fit` measure it.
+//! 32 modes and four impacts in flight; each render's two halves run on two threads); the
+//! measurement is the IIR fit's, passed in by [`estimate_measured`], and
+//! [`crate::material::build`] runs the estimation after the IIR fit and the excitation's,
+//! whose model strikes it. `underfoot-bench`'s `benches/calibration.rs` and
+//! `scripts/time-fit` measure it.
 //!
 //! On the shared recordings the estimated models come within 0.8-2.1 dB (log-spectral
 //! distance) of the measurement in the render they were fitted on, and 0.8-2.4 dB in a
