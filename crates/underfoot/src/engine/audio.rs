@@ -4,8 +4,7 @@
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 
-use crate::numeric::peak_abs;
-use crate::safety::{Fader, LimiterReport};
+use crate::safety::{Fader, LimiterReport, peak_abs};
 use crate::synthesis::{LANE_WIDTH, Lane, PreparedMaterial, VoiceLanes};
 use crate::units::SampleRate;
 

@@ -8,7 +8,7 @@
 //! | [`roots`](mod@roots) | polynomial roots from the companion matrix |
 //! | [`bilinear`](mod@bilinear) | the bilinear transform of a second-order analogue section, prewarped |
 //! | [`dtft`](mod@dtft) | the DTFT of a finite sequence at one frequency |
-//! | [`stats`] | median, nearest-rank percentile, the peak of a block |
+//! | [`stats`] | median and nearest-rank percentile |
 //!
 //! Layer: below [`signal`](crate::signal) and everything else but [`units`](crate::units)
 //! and [`math`](crate::math); it knows no filter, recording or material type.
@@ -25,4 +25,4 @@ pub use bilinear::{bilinear, prewarp_constant};
 pub use dtft::dtft;
 pub use lstsq::{NumericalError, solve_scaled, svd};
 pub use roots::roots;
-pub use stats::{median, normal_quantile, peak_abs, percentile};
+pub use stats::{median, normal_quantile, percentile};

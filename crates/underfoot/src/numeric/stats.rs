@@ -93,28 +93,6 @@ pub fn normal_quantile(p: f64) -> f64 {
     }
 }
 
-/// Partial results [`peak_abs`] keeps: as many as a 256-bit vector holds.
-const PEAK_LANES: usize = 8;
-
-/// The largest `|x|` of `x`, ignoring NaN (0 for none): the same value as
-/// `x.iter().fold(0.0, |m, v| m.max(v.abs()))`, as `max` does not depend on the order
-/// it is taken in, but kept in eight partial maxima so that the loop is a vector loop
-/// rather than one comparison waiting on the last. Real-time safe.
-#[must_use]
-pub fn peak_abs(x: &[f32]) -> f32 {
-    let mut peak = [0.0f32; PEAK_LANES];
-    let chunks = x.chunks_exact(PEAK_LANES);
-    for (p, v) in peak.iter_mut().zip(chunks.remainder()) {
-        *p = p.max(v.abs());
-    }
-    for chunk in chunks {
-        for (p, v) in peak.iter_mut().zip(chunk) {
-            *p = p.max(v.abs());
-        }
-    }
-    peak.iter().fold(0.0, |m, p| m.max(*p))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -154,23 +132,5 @@ mod tests {
         assert_eq!(percentile(&v, 7.0), Some(5.0));
         assert_eq!(percentile(&v, f64::NAN), Some(1.0));
         assert_eq!(percentile(&[], 0.5), None);
-    }
-    proptest::proptest! {
-        /// The peak in partial maxima is the plain running maximum, to the bit, NaN
-        /// and infinities included, at every length.
-        #[test]
-        fn peak_abs_is_the_running_maximum(
-            x in proptest::collection::vec(
-                proptest::prop_oneof![
-                    8 => -10.0f32..10.0,
-                    1 => proptest::prelude::Just(f32::NAN),
-                    1 => proptest::prelude::Just(f32::NEG_INFINITY),
-                ],
-                0..70,
-            ),
-        ) {
-            let plain = x.iter().fold(0.0f32, |m, v| m.max(v.abs()));
-            proptest::prop_assert_eq!(peak_abs(&x).to_bits(), plain.to_bits());
-        }
     }
 }
