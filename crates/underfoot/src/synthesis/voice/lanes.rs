@@ -137,6 +137,12 @@ impl VoiceLanes {
                 *lane = None;
             }
         }
+        // A voice on its own runs alone: the same bits, without seven idle lanes.
+        if lanes.iter().flatten().count() == 1
+            && let Some(l) = lanes.iter_mut().flatten().next()
+        {
+            return l.voice.process(&l.input[..n], &mut l.output[..n]);
+        }
         let (groups, sections) = self.gather(lanes);
         let mut resets = [0u32; LANE_WIDTH];
         let mut start = 0;

@@ -271,9 +271,12 @@ fn voices_in_lanes_play_what_they_play_alone() {
                 laned[c].perturb(&mut SplitMix64::new(block), 0.05);
             }
             let skip = (rng.uniform() < 0.2).then(|| (rng.uniform() * LANE_WIDTH as f64) as usize);
+            // At times a single voice: it runs alone, and must go on where the lanes left it.
+            let only = (rng.uniform() < 0.1).then(|| (rng.uniform() * LANE_WIDTH as f64) as usize);
+            let runs = |c: usize| Some(c) != skip && only.is_none_or(|o| o == c);
             let mut want = vec![vec![0.0f32; n]; LANE_WIDTH];
             for (c, v) in alone.iter_mut().enumerate() {
-                if Some(c) != skip {
+                if runs(c) {
                     resets_alone += v.process(&inputs[c], &mut want[c]);
                 }
             }
@@ -285,7 +288,7 @@ fn voices_in_lanes_play_what_they_play_alone() {
                 .zip(&inputs)
                 .zip(got.iter_mut())
                 .enumerate()
-                .filter(|(c, _)| Some(*c) != skip)
+                .filter(|(c, _)| runs(*c))
                 .map(|(_, x)| x)
             {
                 *arg = Some(Lane {
