@@ -23,8 +23,7 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use underfoot::engine::{self, EngineConfig, Event, MaterialBank, TimedEvent};
-use underfoot::force::SensorReading;
+use underfoot::engine::{self, EngineConfig, MaterialBank};
 use underfoot::force::gait::nominal_step;
 use underfoot::material::builtin::builtin;
 use underfoot::physical::{
@@ -33,9 +32,9 @@ use underfoot::physical::{
 use underfoot::signal::noise::SplitMix64;
 use underfoot::signal::{Biquad, Sos};
 use underfoot::synthesis::{SynthModel, VoiceConfig};
-use underfoot::units::{Hz, Newtons, SampleRate, Seconds};
+use underfoot::units::{Newtons, SampleRate};
 use underfoot_bench::anchors::{self, Bank, CImpact, Crumpling, Flavour, Hammer, Modes, Voices};
-use underfoot_bench::{Samples, figure};
+use underfoot_bench::{Samples, engine_walk_block, figure, surface_modes};
 
 const RATE: SampleRate = SampleRate(48_000);
 /// Criterion samples per bench; the ratios are medians over them.
@@ -261,18 +260,7 @@ fn engine(c: &mut Criterion) {
                     });
                 }
                 total += rounds.ours.time(iterations, || {
-                    // A 500 Hz reading every 96 frames on every channel, a step every 0.5 s.
-                    if block.is_multiple_of(3) {
-                        let t = block as f32 * 64.0 / 48_000.0;
-                        let f = if t % 0.5 < 0.3 { 700.0 } else { 0.0 };
-                        for ch in 0..CHANNELS as u16 {
-                            let _ = ctl.send(TimedEvent::now(Event::Force {
-                                channel: ch,
-                                reading: SensorReading::single(f),
-                            }));
-                        }
-                    }
-                    eng.process(black_box(&mut out), CHANNELS);
+                    engine_walk_block(&mut ctl, &mut eng, &mut out, CHANNELS, block);
                     block += 1;
                     1
                 });
@@ -293,20 +281,6 @@ fn engine(c: &mut Criterion) {
 // Impact and aggregate
 
 const STRIKE_EVERY: usize = 4_800;
-
-/// `benches/physical.rs`'s surfaces.
-fn surface_modes(n: usize) -> Vec<SurfaceMode> {
-    (0..n)
-        .map(|k| {
-            let f = 60.0 * 1.37f64.powi(k as i32);
-            SurfaceMode {
-                frequency: Hz(f),
-                decay: Seconds(8.0 / f),
-                gain: 1e-3 / (1.0 + k as f64),
-            }
-        })
-        .collect()
-}
 
 fn c_modes(modes: &[SurfaceMode]) -> Modes {
     Modes {

@@ -49,7 +49,7 @@ use underfoot::synthesis::{
     VoiceLanes,
 };
 use underfoot::units::{Newtons, SampleRate, Seconds};
-use underfoot_bench::{Samples, channels_per_core};
+use underfoot_bench::{Samples, channels_per_core, engine_walk_block};
 
 const RATE: SampleRate = SampleRate(48_000);
 
@@ -223,18 +223,7 @@ fn engine_block_with(c: &mut Criterion, model: SynthModel) {
     };
     group.bench_function(name, |b| {
         b.iter(|| {
-            // A 500 Hz reading every 96 frames on every channel, a step every 0.5 s.
-            if block.is_multiple_of(3) {
-                let t = block as f32 * 64.0 / 48_000.0;
-                let f = if t % 0.5 < 0.3 { 700.0 } else { 0.0 };
-                for ch in 0..channels as u16 {
-                    let _ = ctl.send(TimedEvent::now(Event::Force {
-                        channel: ch,
-                        reading: SensorReading::single(f),
-                    }));
-                }
-            }
-            eng.process(black_box(&mut out), channels);
+            engine_walk_block(&mut ctl, &mut eng, &mut out, channels, block);
             block += 1;
         });
     });

@@ -13,28 +13,16 @@ use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use underfoot::physical::{
-    Aggregate, AggregateParams, Impact, ImpactParams, ResonatorBank, Surface, SurfaceMode,
+    Aggregate, AggregateParams, Impact, ImpactParams, ResonatorBank, Surface,
 };
-use underfoot::units::{Hz, SampleRate, Seconds};
+use underfoot::units::SampleRate;
+use underfoot_bench::surface_modes;
 
 const RATE: SampleRate = SampleRate(48_000);
 const STRIKE_EVERY: usize = 4_800;
 
-fn modes(modes: usize) -> Vec<SurfaceMode> {
-    (0..modes)
-        .map(|k| {
-            let f = 60.0 * 1.37f64.powi(k as i32);
-            SurfaceMode {
-                frequency: Hz(f),
-                decay: Seconds(8.0 / f),
-                gain: 1e-3 / (1.0 + k as f64),
-            }
-        })
-        .collect()
-}
-
 fn surface(n: usize) -> Surface {
-    Surface::Resonant(ResonatorBank::new(&modes(n), RATE).expect("modes below Nyquist"))
+    Surface::Resonant(ResonatorBank::new(&surface_modes(n), RATE).expect("modes below Nyquist"))
 }
 
 fn impact(c: &mut Criterion) {
@@ -76,7 +64,7 @@ fn aggregate(c: &mut Criterion) {
     let rates = vec![300.0f32; 128];
     let mut out = vec![0.0f32; AGGREGATE_SPAN];
     for n in [3, 16] {
-        let mut agg = Aggregate::new(&modes(n), &AggregateParams::default(), RATE, 1)
+        let mut agg = Aggregate::new(&surface_modes(n), &AggregateParams::default(), RATE, 1)
             .expect("valid parameters");
         group.bench_function(format!("{n} modes"), |b| {
             b.iter(|| {

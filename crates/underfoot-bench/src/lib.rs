@@ -10,7 +10,11 @@ pub mod anchors;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
+use underfoot::engine::{Controller, Engine, Event, TimedEvent};
+use underfoot::force::SensorReading;
+use underfoot::physical::SurfaceMode;
 use underfoot::recording::{Recording, read};
+use underfoot::units::{Hz, Seconds};
 
 /// The shared recordings of `material` (`../shared/data/footsteps/MATERIAL/*.ogg`, in
 /// name order).
@@ -128,6 +132,48 @@ pub fn figure(group: &str, what: &str, value: &str) {
 #[must_use]
 pub fn channels_per_core(seconds_per_sample: f64, rate: f64) -> f64 {
     1.0 / (seconds_per_sample * rate)
+}
+
+/// The surface of the impact and aggregate benches, and of their C anchors: `n` modes
+/// from 60 Hz up in steps of 1.37, each decaying in eight of its periods, with gains
+/// falling as `1 / (1 + k)`. One definition, so that an anchor and the bench it is
+/// compared with strike the same modes.
+#[must_use]
+pub fn surface_modes(n: usize) -> Vec<SurfaceMode> {
+    (0..n)
+        .map(|k| {
+            let f = 60.0 * 1.37f64.powi(k as i32);
+            SurfaceMode {
+                frequency: Hz(f),
+                decay: Seconds(8.0 / f),
+                gain: 1e-3 / (1.0 + k as f64),
+            }
+        })
+        .collect()
+}
+
+/// One 64-frame block of the engine benches' walk on every channel: a 500 Hz reading
+/// every 96 frames (every third block), 700 N for 0.3 s of every 0.5 s, then none; then
+/// the block. One definition, so that the engine bench and its C anchor time the same
+/// work.
+pub fn engine_walk_block(
+    controller: &mut Controller,
+    engine: &mut Engine,
+    out: &mut [f32],
+    channels: usize,
+    block: u64,
+) {
+    if block.is_multiple_of(3) {
+        let t = block as f32 * 64.0 / 48_000.0;
+        let f = if t % 0.5 < 0.3 { 700.0 } else { 0.0 };
+        for channel in 0..channels as u16 {
+            let _ = controller.send(TimedEvent::now(Event::Force {
+                channel,
+                reading: SensorReading::single(f),
+            }));
+        }
+    }
+    engine.process(std::hint::black_box(out), channels);
 }
 
 #[cfg(test)]
