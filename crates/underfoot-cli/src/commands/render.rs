@@ -22,8 +22,8 @@ use std::time::Instant;
 
 use clap::{ArgGroup, Args};
 use underfoot::atomic_file::OutputFile;
-use underfoot::engine::offline::{render, track_events};
-use underfoot::engine::{Event, TimedEvent};
+use underfoot::engine::offline::{render_track, track_events};
+use underfoot::engine::{EngineError, Event, TimedEvent};
 use underfoot::force::condition::ForceConditioner;
 use underfoot::force::gait::{self, GaitConfig};
 use underfoot::force::track::ForceTrack;
@@ -99,18 +99,8 @@ fn parse_block(s: &str) -> Result<usize, SpecError> {
     spec::parse_count(s, "block", 1, 65_536)
 }
 
-/// The longest render: an hour of one channel (half an hour of two, ...). The whole
-/// render is held in memory, 700 MB for an hour at 48 kHz; a longer session is for
-/// `underfoot run --output wav:`.
-const MAX_RENDER: Seconds = Seconds(3600.0);
-
 /// Runs `underfoot render`.
 pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        args.tail.is_finite() && (0.0..=60.0).contains(&args.tail),
-        "--tail {} s: need 0 to 60",
-        args.tail
-    );
     anyhow::ensure!(
         !args.with_force,
         "--with-force is gone: force goes to a file of its own, --force-out FILE.wav \
@@ -155,33 +145,23 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let setup = args.synth.setup_playing(channels, Some(&args.material))?;
     let slots = setup.slots(&args.material, channels)?;
     let rate = setup.config.rate;
-    let events = track_events(&track, rate);
-    // Frames count from the track's first reading (`track_events`).
-    let last = events.last().and_then(|e| e.at).unwrap_or(0);
-    let max_frames = rate.samples_in(MAX_RENDER) / channels.max(1);
-    let frames = usize::try_from(last)
-        .ok()
-        .and_then(|last| last.checked_add(rate.samples_in(Seconds(args.tail)) + 1))
-        .filter(|&n| n <= max_frames)
-        .ok_or_else(|| {
-            anyhow::anyhow!(
-                "the track lasts {:.0} s; a render of {channels} channel(s) is at most {:.0} s \
-                 (use `underfoot run --input replay:FILE --output wav:OUT` for longer sessions)",
-                track.duration().0,
-                MAX_RENDER.0 / channels.max(1) as f64
-            )
-        })?;
-
     let started = Instant::now();
-    let out = render(
+    let out = render_track(
         &setup.config,
         setup.bank,
         &slots,
-        &events,
-        frames,
+        &track,
+        Seconds(args.tail),
         args.block,
-    )?;
+    )
+    .map_err(|e| match e {
+        e @ EngineError::TooLong { .. } => anyhow::anyhow!(
+            "{e} (use `underfoot run --input replay:FILE --output wav:OUT` for longer sessions)"
+        ),
+        e => e.into(),
+    })?;
     let elapsed = started.elapsed().as_secs_f64();
+    let frames = out.samples.len() / channels.max(1);
 
     // Everything is computed and checked: the writes come last.
     if let Some(o) = &save_force {
@@ -193,6 +173,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     }
     let summary = sink.finish()?;
     if let Some(o) = force_out {
+        let events = track_events(&track, rate);
         let force =
             force_at_audio_rate(&events, channels, frames, rate, Hz(args.synth.sensor_rate));
         let mut sink = WavSink::to_output(o, rate, channels as u16, WavFormat::Float32)?;

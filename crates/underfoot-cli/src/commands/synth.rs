@@ -9,31 +9,14 @@ use underfoot::compensation::equalizer::Realisation;
 use underfoot::compensation::files::EqualizerFile;
 use underfoot::compensation::table::UserTable;
 use underfoot::document;
-use underfoot::engine::{EngineConfig, MaterialBank};
+use underfoot::engine::{EngineConfig, MaterialBank, PlaySettings};
 use underfoot::force::drive::DriveKind;
-use underfoot::force::gait::nominal_step;
 use underfoot::material::Library;
 use underfoot::synthesis::{ExcitationChoice, SynthModel, VoiceConfig};
 use underfoot::units::{Decibels, Hz, Newtons, SampleRate};
 
 use crate::commands::calibrate::{UserArg, parse_user};
 use crate::commands::library::open;
-
-fn parse_excitation(s: &str) -> Result<ExcitationChoice, String> {
-    match s {
-        "fitted" => Ok(ExcitationChoice::Fitted),
-        "heel" => Ok(ExcitationChoice::Heel),
-        _ => Err(format!("{s:?}: expected fitted or heel")),
-    }
-}
-
-fn parse_model(s: &str) -> Result<SynthModel, String> {
-    match s {
-        "iir" => Ok(SynthModel::Iir),
-        "physical" => Ok(SynthModel::Physical),
-        _ => Err(format!("{s:?}: expected iir or physical")),
-    }
-}
 
 /// A gain of -120 to +60 dB: beyond it a float gain overflows, and every sample is
 /// silenced as non-finite.
@@ -63,7 +46,7 @@ pub struct SynthArgs {
     pub drive: DriveKind,
     /// Which model plays: iir (the fitted filter) or physical (the calibrated
     /// Hunt-Crossley impacts and aggregate of the material's `physical` entry).
-    #[arg(long, default_value = "iir", value_name = "MODEL", value_parser = parse_model)]
+    #[arg(long, default_value = "iir", value_name = "MODEL")]
     pub model: SynthModel,
     /// Audio sample rate, in Hz.
     #[arg(long = "audio-rate", default_value_t = 48_000, value_name = "HZ")]
@@ -89,7 +72,7 @@ pub struct SynthArgs {
     /// What drives each step: fitted (the heel impact and its train of micro-impacts,
     /// fitted from the material's recordings) or heel (one impulse per step, the IIR
     /// paper's).
-    #[arg(long, default_value = "fitted", value_name = "KIND", value_parser = parse_excitation)]
+    #[arg(long, default_value = "fitted", value_name = "KIND")]
     pub excitation: ExcitationChoice,
     /// Seed of the perturbation (the same seed gives the same output).
     #[arg(long, default_value_t = 0x5EED, value_name = "N")]
@@ -157,6 +140,24 @@ pub struct Setup {
 }
 
 impl SynthArgs {
+    /// The library's settings of a render or session, from these flags.
+    pub fn play_settings(&self) -> PlaySettings {
+        PlaySettings {
+            rate: SampleRate(self.rate),
+            drive: self.drive,
+            model: self.model,
+            excitation: self.excitation,
+            gain: Decibels(self.gain_db),
+            ceiling: Decibels(self.ceiling_db),
+            perturbation: self.perturbation,
+            seed: self.seed,
+            lowpass_order: self.lowpass_order,
+            weight_kg: self.weight_kg,
+            step_threshold: Newtons(self.step_threshold_n),
+            sensor_rate: Hz(self.sensor_rate),
+        }
+    }
+
     /// The files these settings read (library, equalizer, limb file, table): a command's
     /// outputs must not be any of them.
     pub fn input_files(&self) -> Vec<PathBuf> {
@@ -184,21 +185,8 @@ impl SynthArgs {
     /// others are not prepared: 30 ms each, a minute for a library of 2,000). A name the
     /// library does not hold is refused here, with the library's names.
     pub fn setup_playing(&self, channels: usize, only: Option<&[String]>) -> anyhow::Result<Setup> {
-        anyhow::ensure!(
-            (8_000..=384_000).contains(&self.rate),
-            "--audio-rate {} Hz: need 8000 to 384000",
-            self.rate
-        );
-        anyhow::ensure!(
-            (20.0..=300.0).contains(&self.weight_kg),
-            "--weight {} kg: need 20 to 300",
-            self.weight_kg
-        );
-        anyhow::ensure!(
-            self.sensor_rate.is_finite() && (1.0..=10_000.0).contains(&self.sensor_rate),
-            "--sensor-rate {} Hz: need 1 to 10000",
-            self.sensor_rate
-        );
+        let settings = self.play_settings();
+        settings.check()?;
         let not_yet =
             self.library_created_by_fits && self.library.as_ref().is_some_and(|p| !p.exists());
         let (library, origin) = match &self.library {
@@ -213,45 +201,12 @@ impl SynthArgs {
             None => (open(None)?.into_owned(), "the built-in library".to_string()),
         };
         anyhow::ensure!(!library.materials.is_empty(), "{origin} has no materials");
-        let rate = SampleRate(self.rate);
-        let weight = Newtons::weight_of(self.weight_kg);
-        if let Some(sigma) = self.perturbation {
-            anyhow::ensure!(
-                sigma.is_finite() && (0.0..=0.5).contains(&sigma),
-                "--perturbation {sigma}: need 0 to 0.5"
-            );
-        }
-        let voice = VoiceConfig {
-            lowpass_order: self.lowpass_order,
-            model: self.model,
-            excitation: self.excitation,
-            ..VoiceConfig::default()
-        };
-        let step = nominal_step(self.weight_kg, 1.8, rate.hz());
-        let bank = match only {
-            None => MaterialBank::prepare(&library, rate, &voice, &step, weight),
-            Some(names) => {
-                let mut played = Library::new();
-                for name in names {
-                    let model = library.get(name).with_context(|| format!("in {origin}"))?;
-                    played.upsert(model.clone());
-                }
-                MaterialBank::prepare(&played, rate, &voice, &step, weight)
-            }
-        }
-        .with_context(|| format!("preparing the materials of {origin}"))?;
-        let mut config = EngineConfig {
-            rate,
-            channels,
-            drive: self.drive,
-            perturbation: self.perturbation,
-            seed: self.seed,
-            nominal_weight: weight,
-            sensor_rate: Hz(self.sensor_rate),
-            gain: Decibels(self.gain_db),
-            ceiling: Decibels(self.ceiling_db),
-            ..EngineConfig::default()
-        };
+        let rate = settings.rate;
+        let names: Option<Vec<&str>> = only.map(|n| n.iter().map(String::as_str).collect());
+        let bank = settings
+            .prepare(&library, names.as_deref())
+            .with_context(|| format!("preparing the materials of {origin}"))?;
+        let mut config = settings.engine_config(channels)?;
         if let Some(path) = &self.eq {
             let eq: EqualizerFile = document::load(path)?;
             anyhow::ensure!(
@@ -316,20 +271,13 @@ impl SynthArgs {
                     .with_context(|| format!("the limb compensation of {who}"))?,
             );
         }
-        config
-            .detector
-            .set_threshold(Newtons(self.step_threshold_n));
-        config.detector.nominal_loading_rate = config.detector.loading_rate_of(
-            &nominal_step(self.weight_kg, 1.8, self.sensor_rate),
-            SampleRate(self.sensor_rate.round() as u32),
-        );
         Ok(Setup {
             library,
             origin,
             bank,
             config,
-            voice,
-            nominal_step: step,
+            voice: settings.voice(),
+            nominal_step: settings.nominal_step(),
         })
     }
 }

@@ -115,6 +115,20 @@ pub enum EngineError {
         /// Slots in all.
         capacity: usize,
     },
+    /// An offline render would hold more than [`super::offline::MAX_RENDER`] of output.
+    #[error(
+        "the track lasts {:.0} s; a render of {channels} channel(s) is at most {:.0} s",
+        length.0,
+        limit.0
+    )]
+    TooLong {
+        /// How long the track is.
+        length: crate::units::Seconds,
+        /// Its channels.
+        channels: usize,
+        /// The longest render of that many channels.
+        limit: crate::units::Seconds,
+    },
     /// The event queue is full: the audio thread is not running or not keeping up.
     #[error("the engine's event queue is full (is the audio device running?)")]
     QueueFull,

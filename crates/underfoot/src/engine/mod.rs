@@ -89,6 +89,7 @@ mod controller;
 pub mod event;
 pub mod offline;
 mod output;
+pub mod settings;
 mod telemetry;
 
 use std::sync::Arc;
@@ -107,6 +108,7 @@ use clock::SensorClock;
 pub use config::{EngineConfig, EngineError};
 pub use controller::Controller;
 pub use output::OutputStage;
+pub use settings::{PlayError, PlaySettings};
 pub use telemetry::{ChannelLevels, Telemetry, TelemetrySnapshot};
 
 /// Builds an engine and its controller. `initial` is each channel's starting material

@@ -4,7 +4,9 @@
 //! render sounds like is what a session feels like. Every event carries its frame, which
 //! makes the output independent of the block size (tested for 1, 7, 64 and 512 frames).
 
-use super::{EngineConfig, EngineError, Event, MaterialBank, TelemetrySnapshot, TimedEvent};
+use super::{
+    EngineConfig, EngineError, Event, MaterialBank, StrikeRecord, TelemetrySnapshot, TimedEvent,
+};
 use crate::force::gait::{self, GaitConfig, GaitError};
 use crate::force::track::ForceTrack;
 use crate::units::{SampleRate, Seconds};
@@ -44,6 +46,8 @@ pub struct Render {
     pub channels: usize,
     /// The engine's counters.
     pub telemetry: TelemetrySnapshot,
+    /// Every strike played, in order: detected from force or sent as a step.
+    pub strikes: Vec<StrikeRecord>,
 }
 
 /// Renders `frames` frames of `events` (sorted by frame) in blocks of `block` frames.
@@ -67,6 +71,7 @@ pub fn render(
     let channels = config.channels;
     let block = block.max(1);
     let mut samples = vec![0.0f32; frames * channels];
+    let mut strikes = Vec::new();
     let mut next = 0;
     let mut done = 0;
     while done < frames {
@@ -82,12 +87,59 @@ pub fn render(
         );
         done += n;
         controller.collect();
+        // Drained every block, so the log (thousands of records) never fills.
+        controller.take_strikes(|s| strikes.push(*s));
     }
     Ok(Render {
         samples,
         channels,
         telemetry: controller.telemetry(),
+        strikes,
     })
+}
+
+/// The longest offline render: an hour of one channel (half an hour of two, ...). A
+/// render is held in memory, 700 MB for an hour at 48 kHz; a longer session is for a live
+/// session writing its output as it goes.
+pub const MAX_RENDER: Seconds = Seconds(3600.0);
+
+/// Renders a force track: its events ([`track_events`]) played by the engine of `config`
+/// on `initial` materials (one slot per channel), from the track's first reading to
+/// `tail` after its last, in blocks of `block` frames (the output does not depend on it).
+///
+/// # Errors
+/// [`EngineError::TooLong`] past [`MAX_RENDER`] of output (over all channels) or for a
+/// tail beyond a minute, and as [`render`].
+pub fn render_track(
+    config: &EngineConfig,
+    bank: MaterialBank,
+    initial: &[u16],
+    track: &ForceTrack,
+    tail: Seconds,
+    block: usize,
+) -> Result<Render, EngineError> {
+    if !(tail.0.is_finite() && (0.0..=60.0).contains(&tail.0)) {
+        return Err(EngineError::InvalidConfig(format!(
+            "tail {} s: need 0 to 60",
+            tail.0
+        )));
+    }
+    let rate = config.rate;
+    let channels = config.channels.max(1);
+    let events = track_events(track, rate);
+    // Frames count from the track's first reading (`track_events`).
+    let last = events.last().and_then(|e| e.at).unwrap_or(0);
+    let limit = Seconds(MAX_RENDER.0 / channels as f64);
+    let frames = usize::try_from(last)
+        .ok()
+        .and_then(|last| last.checked_add(rate.samples_in(tail) + 1))
+        .filter(|&n| n <= rate.samples_in(limit))
+        .ok_or(EngineError::TooLong {
+            length: track.duration(),
+            channels,
+            limit,
+        })?;
+    render(config, bank, initial, &events, frames, block)
 }
 
 /// One material's stretch of a walk.
@@ -203,4 +255,39 @@ pub fn walk_across(
         segments,
         frames,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::engine::PlaySettings;
+    use crate::material::builtin::builtin;
+
+    #[test]
+    fn a_render_lists_every_strike_at_the_frame_its_sound_starts() {
+        let settings = PlaySettings::default();
+        let rate = settings.rate;
+        let bank = settings.prepare(builtin(), Some(&["gravel"])).unwrap();
+        let walk = walk_across(&bank, &["gravel"], 5, &GaitConfig::default(), rate).unwrap();
+        let config = settings.engine_config(1).unwrap();
+        let out = render(&config, bank, &[0], &walk.events, walk.frames, 64).unwrap();
+        assert_eq!(out.strikes.len(), 5);
+        assert_eq!(out.telemetry.strikes, 5);
+        for (strike, landed) in out.strikes.iter().zip(&walk.segments[0].strikes) {
+            // The detector sees the force cross its threshold some milliseconds after
+            // the foot lands.
+            let after = strike.frame as f64 / rate.hz() - landed.0;
+            assert!((0.0..0.05).contains(&after), "{after} s after the landing");
+            let start = strike.frame as usize;
+            assert!(
+                out.samples[..start]
+                    .iter()
+                    .rev()
+                    .take(8)
+                    .all(|v| v.abs() < 1e-3)
+            );
+            assert!(out.samples[start..start + 48].iter().any(|v| *v != 0.0));
+            assert_eq!((strike.channel, strike.slot), (0, Some(0)));
+        }
+    }
 }

@@ -122,6 +122,48 @@ pub fn read(path: &Path, csv: Option<&CsvSpec>) -> Result<Recording, RecordingEr
     decode_and_check(path, file_name(path), &bytes, csv)
 }
 
+/// A recording from samples already in memory (a caller's array, not a file), checked
+/// as [`read`] checks a file's (see the [module docs](self#checks)); `name` stands for
+/// the file in errors and in a model's `sources`, and the digest is of the samples'
+/// little-endian bytes. The samples are taken whole: [`read_for_analysis`]'s excerpts are
+/// for files too long to hold.
+///
+/// # Errors
+/// [`RecordingError::InvalidRate`] for a rate of zero, [`RecordingError::TooLong`] past
+/// [`MAX_RECORDING_FRAMES`](crate::limits::MAX_RECORDING_FRAMES), and the checks of
+/// [`read`].
+pub fn from_samples(
+    name: &str,
+    rate: SampleRate,
+    samples: Vec<f64>,
+) -> Result<Recording, RecordingError> {
+    let file = Path::new(name);
+    if rate.0 == 0 {
+        return Err(RecordingError::InvalidRate {
+            file: file.to_path_buf(),
+            reason: "the rate given is 0 Hz".into(),
+        });
+    }
+    if samples.len() > crate::limits::MAX_RECORDING_FRAMES {
+        return Err(RecordingError::TooLong {
+            file: file.to_path_buf(),
+            limit: format!("{} samples", crate::limits::MAX_RECORDING_FRAMES),
+        });
+    }
+    check(file, rate, &samples)?;
+    let mut digest = Sha256::new();
+    for v in &samples {
+        digest.update(v.to_le_bytes());
+    }
+    Ok(Recording {
+        name: name.to_owned(),
+        rate,
+        samples,
+        sha256: hex(&digest.finalize()),
+        excerpt: None,
+    })
+}
+
 /// Reads a recording held in memory, as [`read`] does a file named `name`.
 ///
 /// The extension of `name` decides whether it is a CSV, and hints the audio format.
@@ -244,6 +286,33 @@ fn hex(digest: &[u8]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn samples_in_memory_are_checked_as_a_file_is_and_named_in_errors() {
+        let rate = SampleRate(1000);
+        let tone: Vec<f64> = (0..200).map(|n| (n as f64 * 0.3).sin()).collect();
+        let r = from_samples("array 0", rate, tone.clone()).unwrap();
+        assert_eq!((r.name.as_str(), r.samples.len()), ("array 0", 200));
+        assert_eq!(r.sha256.len(), 64);
+        assert_ne!(
+            r.sha256,
+            from_samples("b", rate, tone[1..].to_vec()).unwrap().sha256
+        );
+        let mut nan = tone.clone();
+        nan[7] = f64::NAN;
+        for (samples, rate, expect) in [
+            (nan, rate, "sample 7"),
+            (vec![], rate, "no samples"),
+            (vec![0.5; 200], rate, "silent"),
+            (tone[..10].to_vec(), rate, "short"),
+            (tone.clone(), SampleRate(0), "0 Hz"),
+        ] {
+            let e = from_samples("array 0", rate, samples)
+                .unwrap_err()
+                .to_string();
+            assert!(e.starts_with("array 0: ") && e.contains(expect), "{e}");
+        }
+    }
 
     #[test]
     fn sha256_of_known_strings() {

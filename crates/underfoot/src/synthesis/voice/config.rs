@@ -54,6 +54,30 @@ pub enum SynthModel {
     Physical,
 }
 
+impl core::str::FromStr for ExcitationChoice {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "fitted" => Ok(Self::Fitted),
+            "heel" => Ok(Self::Heel),
+            _ => Err(format!("{s:?}: expected fitted or heel")),
+        }
+    }
+}
+
+impl core::str::FromStr for SynthModel {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "iir" => Ok(Self::Iir),
+            "physical" => Ok(Self::Physical),
+            _ => Err(format!("{s:?}: expected iir or physical")),
+        }
+    }
+}
+
 impl Default for VoiceConfig {
     fn default() -> Self {
         Self {
