@@ -109,6 +109,12 @@ fn action(line: &Line) -> Result<Action, String> {
             "installs the panel's build; tests/cli/panel_*.rs test it",
         ));
     }
+    if text == "pip install ./crates/underfoot-py" {
+        return Ok(Action::Skip(
+            "builds the Python package (minutes); .ci/run runs it in a new virtual \
+             environment, then the package's pytest tests",
+        ));
+    }
     if text == "scripts/install-audio" {
         return Ok(Action::Skip(
             "installs system packages with apt-get; .ci/audio-setup does it in CI",

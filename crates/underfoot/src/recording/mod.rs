@@ -130,7 +130,7 @@ pub fn read(path: &Path, csv: Option<&CsvSpec>) -> Result<Recording, RecordingEr
 ///
 /// # Errors
 /// [`RecordingError::InvalidRate`] for a rate of zero, [`RecordingError::TooLong`] past
-/// [`MAX_RECORDING_FRAMES`](crate::limits::MAX_RECORDING_FRAMES), and the checks of
+/// [`MAX_RECORDING_FRAMES`], and the checks of
 /// [`read`].
 pub fn from_samples(
     name: &str,
@@ -144,10 +144,10 @@ pub fn from_samples(
             reason: "the rate given is 0 Hz".into(),
         });
     }
-    if samples.len() > crate::limits::MAX_RECORDING_FRAMES {
+    if samples.len() > MAX_RECORDING_FRAMES {
         return Err(RecordingError::TooLong {
             file: file.to_path_buf(),
-            limit: format!("{} samples", crate::limits::MAX_RECORDING_FRAMES),
+            limit: format!("{} samples", MAX_RECORDING_FRAMES),
         });
     }
     check(file, rate, &samples)?;
