@@ -73,30 +73,19 @@ pub fn band(lo: f64, hi: f64) -> Outcome<Band> {
     format!("{lo}:{hi}").parse::<Band>().map_err(Failure::input)
 }
 
-/// The Savitzky-Golay setting: `"auto"`, `"off"`, or a window and polynomial order.
+/// The Savitzky-Golay setting: `"auto"`, `"off"`, or `(window, polyorder)`, checked as
+/// the command line's `--savgol auto|off|WINDOW:ORDER` is (the library's parser).
 pub fn savgol(item: &Bound<'_, PyAny>) -> Outcome<SavgolSetting> {
-    if let Ok(s) = item.extract::<String>() {
-        return match s.as_str() {
-            "auto" => Ok(SavgolSetting::Auto { polyorder: 3 }),
-            "off" => Ok(SavgolSetting::Off),
-            _ => Err(Failure::input(format!(
-                "savgol {s:?}: expected \"auto\", \"off\" or (window, polyorder)"
-            ))),
-        };
-    }
-    let (window, polyorder) = item.extract::<(usize, usize)>().map_err(|_| {
-        Failure::new(
-            "InputTypeError",
-            "savgol: expected \"auto\", \"off\" or (window, polyorder)",
-        )
-    })?;
-    if window % 2 == 0 || polyorder >= window || window > 4097 || polyorder > 12 {
-        return Err(Failure::input(format!(
-            "savgol ({window}, {polyorder}): the window must be odd, at most 4097, and larger \
-             than the polynomial order (at most 12)"
-        )));
-    }
-    Ok(SavgolSetting::Fixed { window, polyorder })
+    let text = match item.extract::<(usize, usize)>() {
+        Ok((window, polyorder)) => format!("{window}:{polyorder}"),
+        Err(_) => item.extract::<String>().map_err(|_| {
+            Failure::new(
+                "InputTypeError",
+                "savgol: expected \"auto\", \"off\" or (window, polyorder)",
+            )
+        })?,
+    };
+    text.parse().map_err(Failure::input)
 }
 
 /// The settings of a fit, from the Python side's keyword arguments.

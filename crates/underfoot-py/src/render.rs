@@ -3,8 +3,8 @@
 
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
-use underfoot::engine::PlaySettings;
 use underfoot::engine::offline::{MAX_RENDER, render_track};
+use underfoot::engine::{EngineError, PlaySettings};
 use underfoot::force::SensorReading;
 use underfoot::force::gait::{self, GaitConfig};
 use underfoot::force::track::{ChannelSensors, ForceRow, ForceTrack};
@@ -39,17 +39,17 @@ fn track_of(force: &PyReadonlyArray2<'_, f64>, rate: f64) -> Outcome<ForceTrack>
             "force_rate {rate:?}: need 1 to 100000 Hz"
         )));
     }
-    // Refused before the track is built: a reading takes some 50 bytes, so an hour of
-    // sixteen channels would be gigabytes for a render the engine refuses anyway.
-    let limit = MAX_RENDER.0 / channels as f64;
-    if (samples - 1) as f64 / rate > limit {
-        return Err(Failure::new(
-            "EngineError",
-            format!(
-                "the force lasts {:.0} s; a render of {channels} channel(s) is at most {limit:.0} s",
-                (samples - 1) as f64 / rate
-            ),
-        ));
+    // Refused before the track is built, as `render_track` would refuse it: a reading
+    // takes some 50 bytes, so an hour of sixteen channels would be gigabytes first.
+    let limit = Seconds(MAX_RENDER.0 / channels as f64);
+    let length = Seconds((samples - 1) as f64 / rate);
+    if length.0 > limit.0 {
+        return Err(EngineError::TooLong {
+            length,
+            channels,
+            limit,
+        }
+        .into());
     }
     let mut rows = Vec::with_capacity(samples);
     for k in 0..samples {

@@ -127,6 +127,47 @@ pub enum SavgolSetting {
     Off,
 }
 
+impl SavgolSetting {
+    /// The widest fixed window accepted: far beyond any use, small enough that the
+    /// smoother's design stays cheap.
+    pub const MAX_WINDOW: usize = 4097;
+    /// The highest fixed polynomial order accepted.
+    pub const MAX_ORDER: usize = 12;
+}
+
+/// `auto` (the widest window of polynomial order 3 within 0.1 dB up to the band's top),
+/// `off`, or `WINDOW:ORDER` (an odd window in samples, larger than the polynomial order,
+/// within [`SavgolSetting::MAX_WINDOW`] and [`SavgolSetting::MAX_ORDER`]): the command
+/// line's `--savgol`, and what the Python package's `savgol=` becomes.
+impl core::str::FromStr for SavgolSetting {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim() {
+            "auto" => return Ok(Self::Auto { polyorder: 3 }),
+            "off" => return Ok(Self::Off),
+            _ => {}
+        }
+        let bad = || format!("savgol {s:?}: expected auto, off, or WINDOW:ORDER such as 17:3");
+        let (w, p) = s.split_once(':').ok_or_else(bad)?;
+        let window: usize = w.trim().parse().map_err(|_| bad())?;
+        let polyorder: usize = p.trim().parse().map_err(|_| bad())?;
+        if window > Self::MAX_WINDOW || polyorder > Self::MAX_ORDER {
+            return Err(format!(
+                "savgol {s:?}: the window may be at most {} and the order at most {}",
+                Self::MAX_WINDOW,
+                Self::MAX_ORDER
+            ));
+        }
+        if window.is_multiple_of(2) || polyorder >= window {
+            return Err(format!(
+                "savgol {s:?}: the window must be odd and larger than the polynomial order"
+            ));
+        }
+        Ok(Self::Fixed { window, polyorder })
+    }
+}
+
 impl Default for AnalysisConfig {
     fn default() -> Self {
         Self {

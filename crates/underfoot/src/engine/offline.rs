@@ -108,8 +108,8 @@ pub const MAX_RENDER: Seconds = Seconds(3600.0);
 /// `tail` after its last, in blocks of `block` frames (the output does not depend on it).
 ///
 /// # Errors
-/// [`EngineError::TooLong`] past [`MAX_RENDER`] of output (over all channels) or for a
-/// tail beyond a minute, and as [`render`].
+/// [`EngineError::TooLong`] past [`MAX_RENDER`] of output (over all channels),
+/// [`EngineError::InvalidConfig`] for a tail beyond a minute, and as [`render`].
 pub fn render_track(
     config: &EngineConfig,
     bank: MaterialBank,
